@@ -1,0 +1,60 @@
+# Two commands set everything up on a fresh Debian bookworm machine:
+#   make demo   -- installs what is missing, then runs the main demo
+#   make test   -- installs what is missing, then runs the tests serially and under MPI
+SHELL := /bin/bash
+VENV := .venv
+PYTHON := $(VENV)/bin/python
+APT_PACKAGES := python3-dolfinx-real python3-numba python3-gmsh python3-meshio python3-pytest \
+	python3-matplotlib python3-tqdm python3-scipy python3-venv python3-pip python3-setuptools \
+	openmpi-bin
+MPIEXEC := mpirun
+PYTEST_MPI := -q -p no:cacheprovider
+
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+# One thread per MPI rank: BLAS threads fighting over two cores only add noise.
+export OMP_NUM_THREADS := 1
+export OPENBLAS_NUM_THREADS := 1
+
+.PHONY: setup system-packages test test-serial test-mpi demo bench lint clean
+
+setup: system-packages $(VENV)/.installed
+
+# Cheap when nothing is missing: one dpkg-query per package.
+system-packages:
+	@missing=""; for p in $(APT_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  sudo=""; [ "$$(id -u)" = 0 ] || sudo=sudo; \
+	  $$sudo apt-get update -q && \
+	  DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -q --no-install-recommends $$missing; \
+	fi
+
+$(VENV)/.installed: pyproject.toml | system-packages
+	[ -x $(PYTHON) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
+	$(PYTHON) -m pip install -q --no-deps --no-build-isolation --config-settings editable_mode=compat -e .
+	touch $@
+
+test: test-serial test-mpi
+
+test-serial: setup
+	$(PYTHON) -m pytest -q
+
+test-mpi: setup
+	$(MPIEXEC) -n 2 $(PYTHON) -m pytest $(PYTEST_MPI)
+	$(MPIEXEC) -n 3 --oversubscribe $(PYTHON) -m pytest $(PYTEST_MPI)
+
+demo: setup
+	$(PYTHON) demos/constitutive.py
+
+bench: setup
+	$(PYTHON) -m dolfinx_invertible bench material
+
+lint: setup
+	$(PYTHON) -m pip install -q ruff
+	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
+
+clean:
+	rm -rf $(VENV) output *.egg-info

@@ -1,0 +1,224 @@
+"""C2 extension (paper §4.2) past the threshold surface J = ε.
+
+Below the surface, Ψ̂ext(σ) is the second-order Taylor expansion of Ψ̂ at the point q where the
+segment from the rest point r = (1, …, 1) to σ first meets J = ε:
+
+    Ψ̂ext(σ) = Ψ̂(q) + ∇Ψ̂(q)·(σ − q) + ½ (σ − q)ᵀ ∇²Ψ̂(q) (σ − q).
+
+(The paper's text prints the linear term with the opposite sign, which is not even C1.)
+With a = σ − r, q = r + s a and w = 1 − s, the anchor parameter s(σ) is differentiated
+implicitly through Π(1 + s aᵢ) = ε; the gradient needs third and the Hessian fourth derivatives
+of Ψ̂ at q.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from dolfinx_invertible.extensions.base import C2_ID, Extension
+from dolfinx_invertible.models.registry import model_derivatives
+
+__all__ = ["C2", "c2_derivatives", "threshold_parameter"]
+
+# |∂J/∂s| at the crossing is bounded below by this (relative): a tangential crossing is a
+# measure-zero event that would otherwise divide by zero.
+_MIN_CROSSING_SLOPE = 1e-12
+
+
+@numba.njit(cache=True)
+def _volume_polynomial(t, a, eps):
+    value = 1.0
+    for i in range(a.shape[0]):
+        value *= 1.0 + t * a[i]
+    return value - eps
+
+
+@numba.njit(cache=True)
+def _volume_polynomial_slope(t, a):
+    d = a.shape[0]
+    total = 0.0
+    for i in range(d):
+        term = a[i]
+        for j in range(d):
+            if j != i:
+                term *= 1.0 + t * a[j]
+        total += term
+    return total
+
+
+@numba.njit(cache=True)
+def _bracketed_root(lo, hi, a, eps):
+    """Root of the volume polynomial in [lo, hi], where it decreases from > 0 to ≤ 0."""
+    t = 0.5 * (lo + hi)
+    for _ in range(100):
+        value = _volume_polynomial(t, a, eps)
+        if value > 0.0:
+            lo = t
+        else:
+            hi = t
+        slope = _volume_polynomial_slope(t, a)
+        candidate = t - value / slope if slope < 0.0 else 0.5 * (lo + hi)
+        # Newton while it stays inside the bracket, bisection otherwise.
+        if not (lo < candidate < hi):
+            candidate = 0.5 * (lo + hi)
+        if abs(candidate - t) <= 1e-16 * max(t, 1e-300) or hi - lo <= 1e-17:
+            return candidate
+        t = candidate
+    return t
+
+
+@numba.njit(cache=True)
+def threshold_parameter(a, eps):
+    """Smallest s in (0, 1] with Π(1 + s aᵢ) = ε, given Π(1 + aᵢ) < ε < 1."""
+    d = a.shape[0]
+    e1 = 0.0
+    e2 = 0.0
+    e3 = 0.0
+    for i in range(d):
+        e1 += a[i]
+        for j in range(i + 1, d):
+            e2 += a[i] * a[j]
+    if d == 3:
+        e3 = a[0] * a[1] * a[2]
+    # Critical points of the polynomial split [0, 1] into monotone pieces; the first piece whose
+    # right end is at or below ε holds the first crossing.
+    c0 = 2.0
+    c1 = 2.0
+    if e3 != 0.0:
+        discriminant = 4.0 * e2 * e2 - 12.0 * e1 * e3
+        if discriminant >= 0.0:
+            root = np.sqrt(discriminant)
+            half = -0.5 * (2.0 * e2 + (root if e2 >= 0.0 else -root))
+            if half != 0.0:
+                c0 = half / (3.0 * e3)
+                c1 = e1 / half
+    elif e2 != 0.0:
+        c0 = -e1 / (2.0 * e2)
+    if c1 < c0:
+        c0, c1 = c1, c0
+    lo = 0.0
+    for hi in (c0, c1, 1.0):
+        if not (lo < hi <= 1.0):
+            continue
+        if _volume_polynomial(hi, a, eps) <= 0.0:
+            return _bracketed_root(lo, hi, a, eps)
+        lo = hi
+    return 1.0
+
+
+@numba.njit(cache=True)
+def c2_derivatives(model_id, sigma, params, order, ws):
+    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into ``ws.g``, ``ws.H``.
+
+    Returns the energy and the region: 0 on the model, 1 in the extension.
+    """
+    d = sigma.shape[0]
+    eps = params[2]
+    J = 1.0
+    for i in range(d):
+        J *= sigma[i]
+    if J >= eps:
+        psi = model_derivatives(
+            model_id, sigma, params, order, ws.g, ws.H, ws.model_T, ws.model_Q, ws.f, ws.h
+        )
+        return psi, 0
+    a, q, z, n, t2, q3 = ws.a, ws.q, ws.z, ws.n, ws.t2, ws.q3
+    for i in range(d):
+        a[i] = sigma[i] - 1.0
+    s = threshold_parameter(a, eps)
+    w = 1.0 - s
+    for i in range(d):
+        q[i] = 1.0 + s * a[i]
+    g, H, T, Q = ws.model_g, ws.model_H, ws.model_T, ws.model_Q
+    psi_q = model_derivatives(model_id, q, params, order + 2, g, H, T, Q, ws.f, ws.h)
+    slope = 0.0  # ψ′ along the segment: ∇Ψ̂(q)·a
+    curvature = 0.0  # ψ″: aᵀ ∇²Ψ̂(q) a
+    for i in range(d):
+        slope += g[i] * a[i]
+        for j in range(d):
+            curvature += a[i] * H[i, j] * a[j]
+    psi = psi_q + w * slope + 0.5 * w * w * curvature
+    if order < 1:
+        return psi, 1
+
+    third = 0.0  # ψ‴ = T[a, a, a]
+    crossing = 0.0  # a·z with z = 1/q, proportional to dJ/ds at the crossing
+    for k in range(d):
+        t2[k] = 0.0
+        for i in range(d):
+            for j in range(d):
+                t2[k] += T[i, j, k] * a[i] * a[j]
+        third += t2[k] * a[k]
+        z[k] = 1.0 / q[k]
+        crossing += a[k] * z[k]
+    scale = 0.0
+    for k in range(d):
+        scale += abs(a[k] * z[k])
+    if crossing > -_MIN_CROSSING_SLOPE * scale:
+        crossing = -_MIN_CROSSING_SLOPE * max(scale, 1e-300)
+    for k in range(d):
+        n[k] = -s * z[k] / crossing  # ∇s
+    out = ws.g
+    for k in range(d):
+        Ha = 0.0
+        for j in range(d):
+            Ha += H[k, j] * a[j]
+        out[k] = g[k] + w * Ha + 0.5 * s * w * w * t2[k] + 0.5 * w * w * third * n[k]
+    if order < 2:
+        return psi, 1
+
+    T1, Q2, Dn = ws.T1, ws.Q2, ws.Dn
+    fourth = 0.0
+    for k in range(d):
+        q3[k] = 0.0
+        for m in range(d):
+            T1[k, m] = 0.0
+            Q2[k, m] = 0.0
+            for i in range(d):
+                T1[k, m] += T[i, k, m] * a[i]
+                for j in range(d):
+                    Q2[k, m] += Q[i, j, k, m] * a[i] * a[j]
+            q3[k] += Q2[k, m] * a[m]
+        fourth += q3[k] * a[k]
+    # Hessian of s(σ) by differentiating ∇s = −s z/(a·z) once more.
+    weighted_square = 0.0
+    for i in range(d):
+        weighted_square += a[i] * a[i] * z[i] * z[i]
+    for k in range(d):
+        for m in range(d):
+            dz = -z[k] * z[k] * (n[m] * a[k] + (s if k == m else 0.0))
+            dcrossing = z[m] - n[m] * weighted_square - s * a[m] * z[m] * z[m]
+            Dn[k, m] = -(n[m] * z[k] + s * dz) / crossing + s * z[k] * dcrossing / (
+                crossing * crossing
+            )
+    out_H = ws.H
+    for k in range(d):
+        for m in range(k, d):
+            value = (
+                H[k, m]
+                + s * w * (1.0 + w) * T1[k, m]
+                + 0.5 * s * s * w * w * Q2[k, m]
+                + 1.5 * w * w * (t2[k] * n[m] + n[k] * t2[m])
+                + 0.5 * s * w * w * (q3[k] * n[m] + n[k] * q3[m])
+                + 0.5 * (w * w * fourth - 2.0 * w * third) * n[k] * n[m]
+                + 0.25 * w * w * third * (Dn[k, m] + Dn[m, k])
+            )
+            out_H[k, m] = value
+            out_H[m, k] = value
+    return psi, 1
+
+
+class C2(Extension):
+    """C2 extension past J = ε (default ε = 0.9): energy, stress and tangent stay continuous.
+
+    Parameters
+    ----------
+    eps
+        Threshold on J = det F in (0, 1).
+    """
+
+    extension_id = C2_ID
+
+    def __init__(self, eps: float = 0.9):
+        super().__init__(eps)

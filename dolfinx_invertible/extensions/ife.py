@@ -1,0 +1,60 @@
+"""IFE baseline (Irving et al. 2004, Teran et al. 2005): a stress-only extension.
+
+Below J = ε the diagonal stress is extrapolated linearly from the same anchor point q as the C2
+extension, P̂(σ) = ∇Ψ̂(q) + ∇²Ψ̂(q)(σ − q), and the tangent's diagonal block is the model Hessian
+at q ("derivative clamping"), which is not the derivative of that stress. There is no energy, so
+a line search has to work on the residual. Kept for comparison with the energy-based extensions.
+"""
+
+from __future__ import annotations
+
+import numba
+
+from dolfinx_invertible.extensions.base import IFE_ID, Extension
+from dolfinx_invertible.extensions.c2 import threshold_parameter
+from dolfinx_invertible.models.registry import model_derivatives
+
+__all__ = ["IFE", "ife_derivatives"]
+
+
+@numba.njit(cache=True)
+def ife_derivatives(model_id, sigma, params, order, ws):
+    """Diagonal stress into ``ws.g`` and clamped Hessian into ``ws.H``; returns (0, region).
+
+    The returned "energy" is always 0: IFE defines none (the public API refuses to report one).
+    """
+    d = sigma.shape[0]
+    eps = params[2]
+    J = 1.0
+    for i in range(d):
+        J *= sigma[i]
+    if J >= eps:
+        model_derivatives(
+            model_id, sigma, params, order, ws.g, ws.H, ws.model_T, ws.model_Q, ws.f, ws.h
+        )
+        return 0.0, 0
+    a, q = ws.a, ws.q
+    for i in range(d):
+        a[i] = sigma[i] - 1.0
+    s = threshold_parameter(a, eps)
+    for i in range(d):
+        q[i] = 1.0 + s * a[i]
+    g, H = ws.model_g, ws.model_H
+    model_derivatives(model_id, q, params, max(order, 2), g, H, ws.model_T, ws.model_Q, ws.f, ws.h)
+    for i in range(d):
+        total = g[i]
+        for j in range(d):
+            total += H[i, j] * (sigma[j] - q[j])
+            ws.H[i, j] = H[i, j]
+        ws.g[i] = total
+    return 0.0, 1
+
+
+class IFE(Extension):
+    """Stress-based invertible-FE extension past J = ε (default 0.9); has no energy."""
+
+    extension_id = IFE_ID
+    has_energy = False
+
+    def __init__(self, eps: float = 0.9):
+        super().__init__(eps)

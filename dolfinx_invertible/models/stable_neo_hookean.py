@@ -1,0 +1,51 @@
+"""Stable Neo-Hookean (Smith et al. 2018, without the log barrier):
+
+    Ψ̂ = μ/2 (Σσᵢ² − d) − μ (J − 1) + (λ + μ)/2 (J − 1)².
+
+Defined everywhere, stress free at σ = 1. Smith et al. remap the Lamé parameters so that the
+model linearises to standard linear elasticity; here that remapping is built in (the volume
+stiffness is λ + μ), so the same (μ, λ) as for the other models give the same small-strain
+response: the Hessian at σ = 1 is 2μ I + λ 11ᵀ.
+Separable form: f(x) = μ/2 (x² − 1), k₁ = −μ, k₂ = λ + μ.
+"""
+
+from __future__ import annotations
+
+import numba
+
+from dolfinx_invertible.models.base import Model
+
+MODEL_ID = 3
+
+
+@numba.njit(cache=True)
+def constants(mu, lam):
+    """(c, k₁, k₂) of the separable form."""
+    return 0.0, -mu, lam + mu
+
+
+@numba.njit(cache=True)
+def tables(sigma, mu, lam, f, h):
+    """f and h with their first four derivatives at each singular value."""
+    for i in range(sigma.shape[0]):
+        x = sigma[i]
+        f[i, 0] = 0.5 * mu * (x * x - 1.0)
+        f[i, 1] = mu * x
+        f[i, 2] = mu
+        f[i, 3] = 0.0
+        f[i, 4] = 0.0
+        for m in range(5):
+            h[i, m] = 0.0
+
+
+@numba.njit(cache=True)
+def slopes(x, y, mu, lam):
+    """Divided differences (f′(x) − f′(y))/(x − y) and (h′(x) − h′(y))/(x − y)."""
+    return mu, 0.0
+
+
+class StableNeoHookean(Model):
+    """Stable Neo-Hookean flesh model (Smith, de Goes, Kim 2018), inversion-safe by design."""
+
+    model_id = MODEL_ID
+    name = "stable_neo_hookean"
