@@ -5,7 +5,8 @@ SHELL := /bin/bash
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 APT_PACKAGES := python3-dolfinx-real python3-numba python3-gmsh python3-meshio python3-pytest \
-	python3-matplotlib python3-tqdm python3-scipy python3-venv python3-pip python3-setuptools \
+	python3-matplotlib python3-tqdm python3-scipy python3-h5py python3-venv python3-pip \
+	python3-setuptools \
 	openmpi-bin
 MPIEXEC := mpirun
 PYTEST_MPI := -q -p no:cacheprovider

@@ -120,14 +120,18 @@ class Material:
         return region[0] if single else region
 
     def _sigma_derivatives(self, sigma, order: int):
-        batch, single = as_singular_values(sigma)
-        batch = canonical_singular_values(batch)
+        given, single = as_singular_values(sigma)
+        batch = canonical_singular_values(given)
         n, d = batch.shape
         energy = np.empty(n)
         gradient = np.empty((n, d))
         hessian = np.empty((n, d, d))
         region = np.empty(n, dtype=np.int64)
         pointwise.sigma_batch(batch, *self._ids(), order, energy, gradient, hessian, region)
+        # Chain rule through the sign flips of the canonicalisation.
+        flips = np.where(batch * given < 0.0, -1.0, 1.0)
+        gradient *= flips
+        hessian *= flips[:, :, np.newaxis] * flips[:, np.newaxis, :]
         return energy, gradient, hessian, region, single
 
     def energy_sigma(self, sigma: np.ndarray) -> np.ndarray:

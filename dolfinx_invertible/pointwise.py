@@ -10,10 +10,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible.invariants import invariant_energy, invariant_stress
 from dolfinx_invertible.principal import UNDEFINED_REGION, principal_derivatives
 from dolfinx_invertible.svd import polar_svd_point
 from dolfinx_invertible.tangent import first_piola, stress_derivative
-from dolfinx_invertible.workspace import WORKSPACE_SIZE, stack_buffer, workspace_from
+from dolfinx_invertible import workspace as ws
 
 __all__ = [
     "point_energy",
@@ -33,74 +34,93 @@ _TANGENT = np.array([2])[0]
 
 
 @numba.njit(cache=True)
-def point_energy(F, model_id, extension_id, positive_only, params, ws):
-    """(Ψ(F), region)."""
-    polar_svd_point(F, ws.U, ws.sigma, ws.V)
-    return principal_derivatives(model_id, extension_id, positive_only, ws.sigma, params, _ENERGY, ws)
+def point_energy(F, model_id, extension_id, positive_only, params, work):
+    """(Ψ(F), region); ``work`` is a workspace buffer (see :mod:`~dolfinx_invertible.workspace`)."""
+    done, psi, region = invariant_energy(F, model_id, extension_id, positive_only, params)
+    if done:
+        return psi, region
+    d = F.shape[0]
+    sigma = ws.vector(work, ws.SIGMA, d)
+    polar_svd_point(F, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
+    return principal_derivatives(model_id, extension_id, positive_only, sigma, params, _ENERGY, work)
 
 
 @numba.njit(cache=True)
-def point_stress(F, model_id, extension_id, positive_only, params, ws, P):
+def point_stress(F, model_id, extension_id, positive_only, params, work, P):
     """P(F) into ``P``; returns (Ψ(F), region)."""
-    polar_svd_point(F, ws.U, ws.sigma, ws.V)
+    done, psi, region = invariant_stress(F, model_id, extension_id, positive_only, params, P)
+    if done:
+        return psi, region
+    d = F.shape[0]
+    sigma = ws.vector(work, ws.SIGMA, d)
+    U = ws.matrix(work, ws.U, d)
+    V = ws.matrix(work, ws.V, d)
+    polar_svd_point(F, U, sigma, V)
     psi, region = principal_derivatives(
-        model_id, extension_id, positive_only, ws.sigma, params, _STRESS, ws
+        model_id, extension_id, positive_only, sigma, params, _STRESS, work
     )
-    first_piola(ws.U, ws.g, ws.V, P)
+    first_piola(U, ws.vector(work, ws.G, d), V, P)
     return psi, region
 
 
 @numba.njit(cache=True)
-def point_tangent(F, model_id, extension_id, positive_only, params, project, ws, P, C):
+def point_tangent(F, model_id, extension_id, positive_only, params, project, work, P, C):
     """P(F) into ``P`` and dP/dF (projected if ``project``) into ``C``; returns (Ψ, region)."""
-    polar_svd_point(F, ws.U, ws.sigma, ws.V)
+    d = F.shape[0]
+    sigma = ws.vector(work, ws.SIGMA, d)
+    U = ws.matrix(work, ws.U, d)
+    V = ws.matrix(work, ws.V, d)
+    polar_svd_point(F, U, sigma, V)
     psi, region = principal_derivatives(
-        model_id, extension_id, positive_only, ws.sigma, params, _TANGENT, ws
+        model_id, extension_id, positive_only, sigma, params, _TANGENT, work
     )
-    first_piola(ws.U, ws.g, ws.V, P)
+    first_piola(U, ws.vector(work, ws.G, d), V, P)
     if region == UNDEFINED_REGION:
         C[:, :] = 0.0
     else:
-        stress_derivative(model_id, region, ws.sigma, params, ws, project, C)
+        stress_derivative(model_id, region, sigma, params, work, project, C)
     return psi, region
 
 
 @numba.njit(cache=True)
 def energy_batch(F, model_id, extension_id, positive_only, params, energy, region):
-    ws = workspace_from(stack_buffer(WORKSPACE_SIZE), F.shape[1])
+    work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
-        energy[n], region[n] = point_energy(F[n], model_id, extension_id, positive_only, params, ws)
+        energy[n], region[n] = point_energy(
+            F[n], model_id, extension_id, positive_only, params, work
+        )
 
 
 @numba.njit(cache=True)
 def stress_batch(F, model_id, extension_id, positive_only, params, P, region):
-    ws = workspace_from(stack_buffer(WORKSPACE_SIZE), F.shape[1])
+    work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         _, region[n] = point_stress(
-            F[n], model_id, extension_id, positive_only, params, ws, P[n]
+            F[n], model_id, extension_id, positive_only, params, work, P[n]
         )
 
 
 @numba.njit(cache=True)
 def tangent_batch(F, model_id, extension_id, positive_only, params, project, C, region):
     d = F.shape[1]
-    ws = workspace_from(stack_buffer(WORKSPACE_SIZE), d)
+    work = ws.new_workspace(ws.stack_buffer())
     P = np.empty((d, d))
     for n in range(F.shape[0]):
         _, region[n] = point_tangent(
-            F[n], model_id, extension_id, positive_only, params, project, ws, P, C[n]
+            F[n], model_id, extension_id, positive_only, params, project, work, P, C[n]
         )
 
 
 @numba.njit(cache=True)
 def sigma_batch(sigma, model_id, extension_id, positive_only, params, order, energy, g, H, region):
     """Energy, gradient and Hessian in σ-space (up to ``order``) for canonical signed σ."""
-    ws = workspace_from(stack_buffer(WORKSPACE_SIZE), sigma.shape[1])
+    d = sigma.shape[1]
+    work = ws.new_workspace(ws.stack_buffer())
     for n in range(sigma.shape[0]):
         energy[n], region[n] = principal_derivatives(
-            model_id, extension_id, positive_only, sigma[n], params, order, ws
+            model_id, extension_id, positive_only, sigma[n], params, order, work
         )
         if order >= 1:
-            g[n] = ws.g
+            g[n] = ws.vector(work, ws.G, d)
         if order >= 2:
-            H[n] = ws.H
+            H[n] = ws.matrix(work, ws.H, d)

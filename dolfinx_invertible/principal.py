@@ -13,7 +13,8 @@ from dolfinx_invertible.extensions.base import C1_ID, C2_ID, IFE_ID
 from dolfinx_invertible.extensions.c1 import c1_derivatives
 from dolfinx_invertible.extensions.c2 import c2_derivatives
 from dolfinx_invertible.extensions.ife import ife_derivatives
-from dolfinx_invertible.models.registry import model_derivatives, model_gradient_slope
+from dolfinx_invertible.models.registry import model_derivatives_into, model_gradient_slope
+from dolfinx_invertible import workspace as ws
 
 __all__ = ["UNDEFINED_REGION", "principal_derivatives", "gradient_slope", "rotation_slope"]
 
@@ -27,48 +28,48 @@ _KINK_GAP = 1e-8
 
 
 @numba.njit(cache=True)
-def principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, ws):
-    """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient ``ws.g`` and Hessian ``ws.H``.
+def principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work):
+    """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient and Hessian into the G, H slots.
 
     Returns ``(energy, region)``: region 0 is the model itself, a positive value an extension
     region, :data:`UNDEFINED_REGION` a point where the unextended model is undefined (then the
     energy is +inf and the derivatives are zero).
     """
     if extension_id == C2_ID:
-        return c2_derivatives(model_id, sigma, params, order, ws)
+        return c2_derivatives(model_id, sigma, params, order, work)
     if extension_id == C1_ID:
-        return c1_derivatives(model_id, sigma, params, order, ws)
+        return c1_derivatives(model_id, sigma, params, order, work)
     if extension_id == IFE_ID:
-        return ife_derivatives(model_id, sigma, params, order, ws)
+        return ife_derivatives(model_id, sigma, params, order, work)
     d = sigma.shape[0]
     if positive_only:
         J = 1.0
         for i in range(d):
             J *= sigma[i]
         if not J > 0.0:
-            ws.g[:] = 0.0
-            ws.H[:] = 0.0
+            ws.vector(work, ws.G, d)[:] = 0.0
+            ws.matrix(work, ws.H, d)[:] = 0.0
             return np.inf, UNDEFINED_REGION
-    psi = model_derivatives(
-        model_id, sigma, params, order, ws.g, ws.H, ws.model_T, ws.model_Q, ws.f, ws.h
-    )
-    return psi, 0
+    return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
 
 
 @numba.njit(cache=True)
-def gradient_slope(model_id, region, sigma, params, ws, i, j):
+def gradient_slope(model_id, region, sigma, params, work, i, j):
     """aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ), robust for σᵢ ≈ σⱼ.
 
     On the model (region 0) the model's closed form is exact. In an extension region the
     quotient is used while the gap is large; for a tiny gap the symmetric limit
     ½(Hᵢᵢ + Hⱼⱼ) − Hᵢⱼ, whose error is second order in the gap because aᵢⱼ is even in it.
     """
+    d = sigma.shape[0]
     if region == 0:
-        return model_gradient_slope(model_id, sigma, params, i, j, ws.h)
+        return model_gradient_slope(model_id, sigma, params, i, j, ws.table(work, ws.H_TABLE, d))
+    gradient = ws.vector(work, ws.G, d)
+    hessian = ws.matrix(work, ws.H, d)
     gap = sigma[i] - sigma[j]
     if abs(gap) > _EQUAL_GAP * max(abs(sigma[i]), abs(sigma[j])):
-        return (ws.g[i] - ws.g[j]) / gap
-    return 0.5 * (ws.H[i, i] + ws.H[j, j]) - ws.H[i, j]
+        return (gradient[i] - gradient[j]) / gap
+    return 0.5 * (hessian[i, i] + hessian[j, j]) - hessian[i, j]
 
 
 @numba.njit(cache=True)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.principal import gradient_slope, rotation_slope
 
 __all__ = ["first_piola", "stress_derivative", "clamp_symmetric"]
@@ -110,20 +111,28 @@ def clamp_symmetric(A, eigenvalues, eigenvectors):
 
 
 @numba.njit(cache=True)
-def stress_derivative(model_id, region, sigma, params, ws, project, C):
-    """dP/dF as a (d², d²) matrix into ``C`` from ``ws.U``, ``ws.V``, ``ws.g``, ``ws.H``."""
+def stress_derivative(model_id, region, sigma, params, work, project, C):
+    """dP/dF as a (d², d²) matrix into ``C`` from the U, V, G and H workspace slots."""
     d = sigma.shape[0]
     n = d * d
-    U, V, A, modes, weighted = ws.U, ws.V, ws.A, ws.modes, ws.weighted
+    U = ws.matrix(work, ws.U, d)
+    V = ws.matrix(work, ws.V, d)
+    A = ws.matrix(work, ws.A_BLOCK, d)
+    hessian = ws.matrix(work, ws.H, d)
+    gradient = ws.vector(work, ws.G, d)
+    modes = ws.modes(work, ws.MODES, d)
+    weighted = ws.modes(work, ws.WEIGHTED, d)
     for m in range(d):
         for i in range(d):
             for j in range(d):
                 modes[m, i * d + j] = U[i, m] * V[j, m]
     for i in range(d):
         for j in range(d):
-            A[i, j] = ws.H[i, j]
+            A[i, j] = hessian[i, j]
     if project:
-        clamp_symmetric(A, ws.eigenvalues, ws.eigenvectors)
+        clamp_symmetric(
+            A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d)
+        )
     for m in range(d):
         for alpha in range(n):
             total = 0.0
@@ -138,8 +147,8 @@ def stress_derivative(model_id, region, sigma, params, ws, project, C):
             C[alpha, beta] = total
     for i in range(d - 1):
         for j in range(i + 1, d):
-            stretch = gradient_slope(model_id, region, sigma, params, ws, i, j)
-            twist = rotation_slope(sigma, ws.g, i, j)
+            stretch = gradient_slope(model_id, region, sigma, params, work, i, j)
+            twist = rotation_slope(sigma, gradient, i, j)
             if project:
                 stretch = max(stretch, 0.0)
                 twist = max(twist, 0.0)

@@ -1,83 +1,98 @@
-"""Scratch arrays for the per-point kernels, living on the caller's stack.
+"""Scratch memory for the per-point kernels: one flat float64 buffer on the caller's stack.
 
-The point functions never allocate: everything they write lives in a :class:`Workspace`. Its
-arrays are views into one stack buffer (``stack_buffer`` in the outermost compiled function,
-then :func:`workspace_from`), so they carry no reference count: passing the workspace down the
-call chain costs no atomic increments, which on heap arrays cost more than the maths itself.
+The point functions never allocate. Everything they write lives in one ``work`` buffer of
+``WORKSPACE_SIZE`` entries, created by ``stack_buffer`` in the outermost compiled function (a
+batch loop or a cell kernel) and passed down as a single array; each function takes the views
+it needs through the accessors below. Views of a stack buffer carry no reference count, and a
+single array is cheap to pass: a tuple of two dozen heap arrays cost more per call (reference
+counting and argument copies) than the energy evaluation itself.
+
+Slots are sized for 3D; 2D uses the leading part of each.
 """
 
 from __future__ import annotations
-
-from collections import namedtuple
 
 import numba
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["WORKSPACE_SIZE", "Workspace", "stack_buffer", "workspace_from"]
+__all__ = ["WORKSPACE_SIZE", "stack_buffer", "new_workspace", "vector", "matrix", "table",
+           "tensor3", "tensor4"]  # fmt: skip
 
-Workspace = namedtuple(
-    "Workspace",
-    [
-        # polar SVD
-        "sigma", "U", "V",
-        # derivatives of the (extended) energy in σ: gradient, Hessian
-        "g", "H",
-        # derivatives of the model itself (at σ, or at the extension's anchor point q)
-        "model_g", "model_H", "model_T", "model_Q", "f", "h",
-        # extension intermediates
-        "q", "a", "z", "n", "t2", "q3", "T1", "Q2", "Dn",
-        # SPD projection and F-space assembly
-        "A", "eigenvalues", "eigenvectors", "modes", "weighted",
-    ],
-)  # fmt: skip
-
-#: float64 entries a 3D workspace needs (2D needs fewer).
-WORKSPACE_SIZE = 3 * (1 + 3 + 3 + 1 + 3 + 1 + 3 + 9 + 27 + 5 + 5 + 6 + 9 + 3 + 1 + 3 + 9 + 9)
+# Slot offsets. Vectors take 3 entries, matrices 9, tables (d, 5) 15, third-order tensors 27,
+# fourth-order 81, mode sets (d, d²) 27.
+SIGMA, U, V = 0, 3, 12
+G, H = 21, 24  # gradient and Hessian of the (extended) energy in σ
+MODEL_G, MODEL_H, MODEL_T, MODEL_Q = 33, 36, 45, 72  # derivatives of the model itself
+F_TABLE, H_TABLE = 153, 168  # separable-form tables of the model
+Q_POINT, A_OFFSET, Z, N, T2, Q3 = 183, 186, 189, 192, 195, 198  # extension vectors
+T1, Q2, DN = 201, 210, 219  # extension matrices
+A_BLOCK, EIGENVALUES, EIGENVECTORS = 228, 237, 240  # SPD projection
+MODES, WEIGHTED = 249, 276  # F-space assembly
+WORKSPACE_SIZE = 303
 
 
 @intrinsic
-def stack_buffer(typingctx, size):
-    """A pointer to ``size`` (a compile-time constant) float64 on the calling function's stack.
+def stack_buffer(typingctx):
+    """A pointer to ``WORKSPACE_SIZE`` float64 on the calling function's stack.
 
     Valid until the function that calls this returns; use it in the outermost kernel or loop.
     """
-    if not isinstance(size, types.IntegerLiteral):
-        return None
 
     def codegen(context, builder, signature, args):
         element = context.get_data_type(types.float64)
-        return cgutils.alloca_once(builder, element, size=size.literal_value)
+        return cgutils.alloca_once(builder, element, size=WORKSPACE_SIZE)
 
-    return types.CPointer(types.float64)(size), codegen
+    return types.CPointer(types.float64)(), codegen
+
+
+@intrinsic
+def _address(typingctx, array, offset):
+    """Pointer to ``array[offset]`` (no bounds check)."""
+
+    def codegen(context, builder, signature, args):
+        view = context.make_array(signature.args[0])(context, builder, args[0])
+        return builder.gep(view.data, [args[1]])
+
+    return types.CPointer(array.dtype)(array, offset), codegen
 
 
 @numba.njit(cache=True)
-def workspace_from(pointer, d):
-    """Carve a :class:`Workspace` for dimension ``d`` out of ``WORKSPACE_SIZE`` float64."""
-    buffer = numba.carray(pointer, WORKSPACE_SIZE)
-    buffer[:] = 0.0
-    v = d
-    m = d * d
-    sizes = (v, m, m, v, m, v, m, m * d, m * m, 5 * d, 5 * d,
-             v, v, v, v, v, v, m, m, m, m, v, m, m * d, m * d)  # fmt: skip
-    offsets = [0] * len(sizes)
-    total = 0
-    for i in range(len(sizes)):
-        offsets[i] = total
-        total += sizes[i]
+def new_workspace(pointer):
+    """The zeroed ``WORKSPACE_SIZE`` buffer behind ``pointer`` as an array."""
+    work = numba.carray(pointer, WORKSPACE_SIZE)
+    work[:] = 0.0
+    return work
 
-    def vector(i):
-        return buffer[offsets[i] : offsets[i] + sizes[i]]
 
-    return Workspace(
-        vector(0), vector(1).reshape((d, d)), vector(2).reshape((d, d)),
-        vector(3), vector(4).reshape((d, d)),
-        vector(5), vector(6).reshape((d, d)), vector(7).reshape((d, d, d)),
-        vector(8).reshape((d, d, d, d)), vector(9).reshape((d, 5)), vector(10).reshape((d, 5)),
-        vector(11), vector(12), vector(13), vector(14), vector(15), vector(16),
-        vector(17).reshape((d, d)), vector(18).reshape((d, d)), vector(19).reshape((d, d)),
-        vector(20).reshape((d, d)), vector(21), vector(22).reshape((d, d)),
-        vector(23).reshape((d, d * d)), vector(24).reshape((d, d * d)),
-    )  # fmt: skip
+# Views are built with carray on a pointer into the buffer: a reshape would call into numba's C
+# helper on every access, which costs more than the arithmetic that follows.
+@numba.njit(cache=True)
+def vector(work, offset, d):
+    return numba.carray(_address(work, offset), d)
+
+
+@numba.njit(cache=True)
+def matrix(work, offset, d):
+    return numba.carray(_address(work, offset), (d, d))
+
+
+@numba.njit(cache=True)
+def table(work, offset, d):
+    return numba.carray(_address(work, offset), (d, 5))
+
+
+@numba.njit(cache=True)
+def tensor3(work, offset, d):
+    return numba.carray(_address(work, offset), (d, d, d))
+
+
+@numba.njit(cache=True)
+def tensor4(work, offset, d):
+    return numba.carray(_address(work, offset), (d, d, d, d))
+
+
+@numba.njit(cache=True)
+def modes(work, offset, d):
+    return numba.carray(_address(work, offset), (d, d * d))

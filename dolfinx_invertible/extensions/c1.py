@@ -16,7 +16,8 @@ import numpy as np
 
 from dolfinx_invertible.extensions.base import C1_ID, Extension
 from dolfinx_invertible.models.base import Model
-from dolfinx_invertible.models.registry import model_derivatives
+from dolfinx_invertible import workspace as ws
+from dolfinx_invertible.models.registry import model_derivatives, model_derivatives_into
 
 __all__ = ["C1", "c1_derivatives"]
 
@@ -69,8 +70,8 @@ def _product(subset, skip, offsets, d):
 
 
 @numba.njit(cache=True)
-def c1_derivatives(model_id, sigma, params, order, ws):
-    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into ``ws.g``, ``ws.H``.
+def c1_derivatives(model_id, sigma, params, order, work):
+    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into the G, H slots.
 
     Returns the energy and the region: the number of singular values below ε.
     """
@@ -79,8 +80,8 @@ def c1_derivatives(model_id, sigma, params, order, ws):
     k = params[3]
     below = 0
     count = 0
-    q = ws.q
-    offsets = ws.a
+    q = ws.vector(work, ws.Q_POINT, d)
+    offsets = ws.vector(work, ws.A_OFFSET, d)
     for i in range(d):
         if sigma[i] < eps:
             below |= 1 << i
@@ -91,12 +92,16 @@ def c1_derivatives(model_id, sigma, params, order, ws):
             q[i] = sigma[i]
             offsets[i] = 0.0
     if count == 0:
-        psi = model_derivatives(
-            model_id, sigma, params, order, ws.g, ws.H, ws.model_T, ws.model_Q, ws.f, ws.h
-        )
-        return psi, 0
-    g, H, T, Q = ws.model_g, ws.model_H, ws.model_T, ws.model_Q
-    psi_q = model_derivatives(model_id, q, params, min(count + order, 4), g, H, T, Q, ws.f, ws.h)
+        return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+    g = ws.vector(work, ws.MODEL_G, d)
+    H = ws.matrix(work, ws.MODEL_H, d)
+    T = ws.tensor3(work, ws.MODEL_T, d)
+    Q = ws.tensor4(work, ws.MODEL_Q, d)
+    f_table = ws.table(work, ws.F_TABLE, d)
+    h_table = ws.table(work, ws.H_TABLE, d)
+    psi_q = model_derivatives(model_id, q, params, min(count + order, 4), g, H, T, Q, f_table, h_table)
+    out_g = ws.vector(work, ws.G, d)
+    out_H = ws.matrix(work, ws.H, d)
 
     psi = 0.0
     for subset in range(below + 1):
@@ -129,7 +134,7 @@ def c1_derivatives(model_id, sigma, params, order, ws):
                 total += _mixed_partial(subset, l, -1, psi_q, g, H, T, Q, d) * _product(
                     subset, 0, offsets, d
                 )
-        ws.g[l] = total
+        out_g[l] = total
     if order < 2:
         return psi, count
 
@@ -149,8 +154,8 @@ def c1_derivatives(model_id, sigma, params, order, ws):
                     total += _mixed_partial(
                         subset, extra_l, extra_m, psi_q, g, H, T, Q, d
                     ) * _product(subset, skip, offsets, d)
-            ws.H[l, m] = total
-            ws.H[m, l] = total
+            out_H[l, m] = total
+            out_H[m, l] = total
     return psi, count
 
 

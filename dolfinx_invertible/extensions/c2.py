@@ -17,7 +17,8 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.extensions.base import C2_ID, Extension
-from dolfinx_invertible.models.registry import model_derivatives
+from dolfinx_invertible.models.registry import model_derivatives, model_derivatives_into
+from dolfinx_invertible import workspace as ws
 
 __all__ = ["C2", "c2_derivatives", "threshold_parameter"]
 
@@ -108,8 +109,8 @@ def threshold_parameter(a, eps):
 
 
 @numba.njit(cache=True)
-def c2_derivatives(model_id, sigma, params, order, ws):
-    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into ``ws.g``, ``ws.H``.
+def c2_derivatives(model_id, sigma, params, order, work):
+    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into the G, H slots.
 
     Returns the energy and the region: 0 on the model, 1 in the extension.
     """
@@ -119,19 +120,26 @@ def c2_derivatives(model_id, sigma, params, order, ws):
     for i in range(d):
         J *= sigma[i]
     if J >= eps:
-        psi = model_derivatives(
-            model_id, sigma, params, order, ws.g, ws.H, ws.model_T, ws.model_Q, ws.f, ws.h
-        )
-        return psi, 0
-    a, q, z, n, t2, q3 = ws.a, ws.q, ws.z, ws.n, ws.t2, ws.q3
+        return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+    a = ws.vector(work, ws.A_OFFSET, d)
+    q = ws.vector(work, ws.Q_POINT, d)
+    z = ws.vector(work, ws.Z, d)
+    n = ws.vector(work, ws.N, d)
+    t2 = ws.vector(work, ws.T2, d)
+    q3 = ws.vector(work, ws.Q3, d)
     for i in range(d):
         a[i] = sigma[i] - 1.0
     s = threshold_parameter(a, eps)
     w = 1.0 - s
     for i in range(d):
         q[i] = 1.0 + s * a[i]
-    g, H, T, Q = ws.model_g, ws.model_H, ws.model_T, ws.model_Q
-    psi_q = model_derivatives(model_id, q, params, order + 2, g, H, T, Q, ws.f, ws.h)
+    g = ws.vector(work, ws.MODEL_G, d)
+    H = ws.matrix(work, ws.MODEL_H, d)
+    T = ws.tensor3(work, ws.MODEL_T, d)
+    Q = ws.tensor4(work, ws.MODEL_Q, d)
+    f_table = ws.table(work, ws.F_TABLE, d)
+    h_table = ws.table(work, ws.H_TABLE, d)
+    psi_q = model_derivatives(model_id, q, params, order + 2, g, H, T, Q, f_table, h_table)
     slope = 0.0  # ψ′ along the segment: ∇Ψ̂(q)·a
     curvature = 0.0  # ψ″: aᵀ ∇²Ψ̂(q) a
     for i in range(d):
@@ -159,7 +167,7 @@ def c2_derivatives(model_id, sigma, params, order, ws):
         crossing = -_MIN_CROSSING_SLOPE * max(scale, 1e-300)
     for k in range(d):
         n[k] = -s * z[k] / crossing  # ∇s
-    out = ws.g
+    out = ws.vector(work, ws.G, d)
     for k in range(d):
         Ha = 0.0
         for j in range(d):
@@ -168,7 +176,9 @@ def c2_derivatives(model_id, sigma, params, order, ws):
     if order < 2:
         return psi, 1
 
-    T1, Q2, Dn = ws.T1, ws.Q2, ws.Dn
+    T1 = ws.matrix(work, ws.T1, d)
+    Q2 = ws.matrix(work, ws.Q2, d)
+    Dn = ws.matrix(work, ws.DN, d)
     fourth = 0.0
     for k in range(d):
         q3[k] = 0.0
@@ -192,7 +202,7 @@ def c2_derivatives(model_id, sigma, params, order, ws):
             Dn[k, m] = -(n[m] * z[k] + s * dz) / crossing + s * z[k] * dcrossing / (
                 crossing * crossing
             )
-    out_H = ws.H
+    out_H = ws.matrix(work, ws.H, d)
     for k in range(d):
         for m in range(k, d):
             value = (

@@ -12,14 +12,15 @@ import numba
 
 from dolfinx_invertible.extensions.base import IFE_ID, Extension
 from dolfinx_invertible.extensions.c2 import threshold_parameter
-from dolfinx_invertible.models.registry import model_derivatives
+from dolfinx_invertible import workspace as ws
+from dolfinx_invertible.models.registry import model_derivatives_into
 
 __all__ = ["IFE", "ife_derivatives"]
 
 
 @numba.njit(cache=True)
-def ife_derivatives(model_id, sigma, params, order, ws):
-    """Diagonal stress into ``ws.g`` and clamped Hessian into ``ws.H``; returns (0, region).
+def ife_derivatives(model_id, sigma, params, order, work):
+    """Diagonal stress into the G slot, clamped Hessian into the H slot; returns (0, region).
 
     The returned "energy" is always 0: IFE defines none (the public API refuses to report one).
     """
@@ -29,24 +30,26 @@ def ife_derivatives(model_id, sigma, params, order, ws):
     for i in range(d):
         J *= sigma[i]
     if J >= eps:
-        model_derivatives(
-            model_id, sigma, params, order, ws.g, ws.H, ws.model_T, ws.model_Q, ws.f, ws.h
-        )
+        model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H)
         return 0.0, 0
-    a, q = ws.a, ws.q
+    a = ws.vector(work, ws.A_OFFSET, d)
+    q = ws.vector(work, ws.Q_POINT, d)
     for i in range(d):
         a[i] = sigma[i] - 1.0
     s = threshold_parameter(a, eps)
     for i in range(d):
         q[i] = 1.0 + s * a[i]
-    g, H = ws.model_g, ws.model_H
-    model_derivatives(model_id, q, params, max(order, 2), g, H, ws.model_T, ws.model_Q, ws.f, ws.h)
+    model_derivatives_into(model_id, q, params, max(order, 2), work, ws.MODEL_G, ws.MODEL_H)
+    g = ws.vector(work, ws.MODEL_G, d)
+    H = ws.matrix(work, ws.MODEL_H, d)
+    out_g = ws.vector(work, ws.G, d)
+    out_H = ws.matrix(work, ws.H, d)
     for i in range(d):
         total = g[i]
         for j in range(d):
             total += H[i, j] * (sigma[j] - q[j])
-            ws.H[i, j] = H[i, j]
-        ws.g[i] = total
+            out_H[i, j] = H[i, j]
+        out_g[i] = total
     return 0.0, 1
 
 

@@ -46,6 +46,14 @@ def slopes(x, y, mu, lam):
     return mu * (1.0 + inverse_product), -inverse_product
 
 
+@numba.njit(cache=True)
+def invariant_terms(I1, I2, J, d, mu, lam):
+    """Ψ and ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J for I₁ = tr C, I₂ = tr C² (J > 0): Ψ without an SVD."""
+    log_J = math.log(J)
+    psi = 0.5 * mu * (I1 - d) - mu * log_J + 0.5 * lam * log_J * log_J
+    return psi, 0.5 * mu, 0.0, (lam * log_J - mu) / J
+
+
 class NeoHookean(Model):
     """Compressible Neo-Hookean energy (the paper's example model); needs J > 0 unextended."""
 

@@ -12,8 +12,14 @@ import numba
 from dolfinx_invertible.models import arap, corotated, fixed_corotated, neo_hookean, stvk
 from dolfinx_invertible.models import stable_neo_hookean
 from dolfinx_invertible.models.separable import separable_derivatives, separable_gradient_slope
+from dolfinx_invertible import workspace as ws
 
-__all__ = ["model_derivatives", "model_gradient_slope"]
+__all__ = [
+    "model_derivatives",
+    "model_derivatives_into",
+    "model_gradient_slope",
+    "model_invariant_terms",
+]
 
 
 @numba.njit(cache=True)
@@ -62,6 +68,27 @@ def _slopes(model_id, x, y, mu, lam):
 
 
 @numba.njit(cache=True)
+def model_invariant_terms(model_id, I1, I2, J, d, params):
+    """(available, Ψ, ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J) for models written in I₁ = tr C, I₂ = tr C², J.
+
+    Such models need no SVD where their extension is inactive; ``available`` is False for the
+    others (their energy needs the singular values themselves).
+    """
+    mu = params[0]
+    lam = params[1]
+    if model_id == neo_hookean.MODEL_ID:
+        psi, d1, d2, dJ = neo_hookean.invariant_terms(I1, I2, J, d, mu, lam)
+        return True, psi, d1, d2, dJ
+    if model_id == stable_neo_hookean.MODEL_ID:
+        psi, d1, d2, dJ = stable_neo_hookean.invariant_terms(I1, I2, J, d, mu, lam)
+        return True, psi, d1, d2, dJ
+    if model_id == stvk.MODEL_ID:
+        psi, d1, d2, dJ = stvk.invariant_terms(I1, I2, J, d, mu, lam)
+        return True, psi, d1, d2, dJ
+    return False, 0.0, 0.0, 0.0, 0.0
+
+
+@numba.njit(cache=True)
 def model_derivatives(model_id, sigma, params, order, g, H, T, Q, f, h):
     """Ψ̂(σ) of model ``model_id``; derivative tensors up to ``order`` go to g, H, T, Q.
 
@@ -84,3 +111,21 @@ def model_gradient_slope(model_id, sigma, params, i, j, h):
     c, k1, k2 = _constants(model_id, mu, lam)
     f_slope, h_slope = _slopes(model_id, sigma[i], sigma[j], mu, lam)
     return separable_gradient_slope(sigma, i, j, f_slope, h_slope, c, k1, k2, h)
+
+
+@numba.njit(cache=True)
+def model_derivatives_into(model_id, sigma, params, order, work, gradient_slot, hessian_slot):
+    """:func:`model_derivatives` with the gradient and Hessian written to workspace slots."""
+    d = sigma.shape[0]
+    return model_derivatives(
+        model_id,
+        sigma,
+        params,
+        order,
+        ws.vector(work, gradient_slot, d),
+        ws.matrix(work, hessian_slot, d),
+        ws.tensor3(work, ws.MODEL_T, d),
+        ws.tensor4(work, ws.MODEL_Q, d),
+        ws.table(work, ws.F_TABLE, d),
+        ws.table(work, ws.H_TABLE, d),
+    )

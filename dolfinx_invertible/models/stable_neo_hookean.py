@@ -44,6 +44,13 @@ def slopes(x, y, mu, lam):
     return mu, 0.0
 
 
+@numba.njit(cache=True)
+def invariant_terms(I1, I2, J, d, mu, lam):
+    """Ψ and ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J for I₁ = tr C, I₂ = tr C²: Ψ without an SVD."""
+    psi = 0.5 * mu * (I1 - d) - mu * (J - 1.0) + 0.5 * (lam + mu) * (J - 1.0) ** 2
+    return psi, 0.5 * mu, 0.0, (lam + mu) * (J - 1.0) - mu
+
+
 class StableNeoHookean(Model):
     """Stable Neo-Hookean flesh model (Smith, de Goes, Kim 2018), inversion-safe by design."""
 

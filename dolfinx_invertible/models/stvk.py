@@ -43,6 +43,13 @@ def slopes(x, y, mu, lam):
     return mu * (x * x + x * y + y * y - 1.0), 2.0
 
 
+@numba.njit(cache=True)
+def invariant_terms(I1, I2, J, d, mu, lam):
+    """Ψ and ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J for I₁ = tr C, I₂ = tr C²: Ψ without an SVD."""
+    psi = 0.25 * mu * (I2 - 2.0 * I1 + d) + 0.125 * lam * (I1 - d) ** 2
+    return psi, -0.5 * mu + 0.25 * lam * (I1 - d), 0.25 * mu, 0.0
+
+
 class StVK(Model):
     """St. Venant–Kirchhoff energy (quadratic in Green strain; softens under compression)."""
 

@@ -1,0 +1,105 @@
+"""Every DOLFINx version difference the plugin bridges lives here, and only here.
+
+The rest of the package calls these functions instead of the version-specific DOLFINx API.
+Written against DOLFINx 0.5.2 (Debian bookworm) first; later versions add branches here.
+"""
+
+from __future__ import annotations
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.io
+import numpy as np
+
+__all__ = [
+    "DOLFINX_VERSION",
+    "vector_function_space",
+    "scalar_function_space",
+    "petsc_vector",
+    "evaluate_expression",
+    "xdmf_file",
+]
+
+DOLFINX_VERSION = tuple(int(part) for part in dolfinx.__version__.split(".")[:2])
+
+
+def vector_function_space(mesh, family: str, degree: int):
+    """Vector-valued space with one component per geometric dimension."""
+    if DOLFINX_VERSION < (0, 7):
+        return dolfinx.fem.VectorFunctionSpace(mesh, (family, degree))
+    return dolfinx.fem.functionspace(mesh, (family, degree, (mesh.geometry.dim,)))
+
+
+def scalar_function_space(mesh, family: str, degree: int):
+    """Scalar space, e.g. ("DG", 0) for per-cell diagnostics."""
+    if DOLFINX_VERSION < (0, 7):
+        return dolfinx.fem.FunctionSpace(mesh, (family, degree))
+    return dolfinx.fem.functionspace(mesh, (family, degree))
+
+
+def petsc_vector(function):
+    """The PETSc vector wrapping a Function's dofs (ghosted)."""
+    if DOLFINX_VERSION < (0, 8):
+        return function.vector
+    return function.x.petsc_vec
+
+
+def evaluate_expression(expression, mesh, cells: np.ndarray) -> np.ndarray:
+    """Values of a compiled ``dolfinx.fem.Expression`` on ``cells``: (n_cells, points × size)."""
+    if DOLFINX_VERSION < (0, 7):
+        return expression.eval(cells)
+    return expression.eval(mesh, cells)
+
+
+def xdmf_file(comm, path, mode: str = "w"):
+    """An XDMF file (``mode`` "w" or "r")."""
+    return dolfinx.io.XDMFFile(comm, str(path), mode)
+
+
+def _cpp_object(wrapper):
+    # Some Python wrappers hold their C++ object, others (0.5's Mesh, Constant) subclass it.
+    for attribute in ("_cpp_object", "_mesh"):
+        if hasattr(wrapper, attribute):
+            return getattr(wrapper, attribute)
+    return wrapper
+
+
+def custom_form(spaces, kernel_address: int, coefficients, constants, mesh):
+    """A DOLFINx Form over all cells whose cell integral is a custom kernel.
+
+    ``spaces`` are Python FunctionSpaces (none for a functional), ``coefficients`` Functions and
+    ``constants`` Constants, in the order the kernel reads them.
+    """
+    from dolfinx import cpp
+
+    if DOLFINX_VERSION < (0, 7):
+        integrals = {cpp.fem.IntegralType.cell: ([(-1, kernel_address)], None)}
+        return cpp.fem.Form_float64(
+            [_cpp_object(space) for space in spaces],
+            integrals,
+            [_cpp_object(coefficient) for coefficient in coefficients],
+            [_cpp_object(constant) for constant in constants],
+            False,
+            _cpp_object(mesh),
+        )
+    raise NotImplementedError(
+        f"custom kernel forms are not yet bridged for DOLFINx {dolfinx.__version__}"
+    )
+
+
+def coordinate_element_degree(mesh) -> int:
+    """Polynomial degree of the mesh geometry map."""
+    return mesh.geometry.cmap.degree
+
+
+def basix_element(space):
+    """The scalar Basix element of a (blocked) Lagrange space."""
+    return space.element.basix_element
+
+
+def cell_dofs(space) -> np.ndarray:
+    """Dofs of every local cell (owned cells first, then ghosts): (n_cells, dofs per cell)."""
+    dofmap = space.dofmap
+    if DOLFINX_VERSION < (0, 7):
+        return dofmap.list.array.reshape(-1, dofmap.dof_layout.num_dofs)
+    return np.asarray(dofmap.list)
