@@ -17,7 +17,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMP_NUM_THREADS := 1
 export OPENBLAS_NUM_THREADS := 1
 
-.PHONY: setup system-packages test test-serial test-mpi demo bench lint clean
+.PHONY: setup system-packages test test-serial test-mpi demo bench lint clean clean-cache
 
 setup: system-packages $(VENV)/.installed
 
@@ -57,5 +57,10 @@ lint: setup
 	$(PYTHON) -m pip install -q ruff
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
 
-clean:
+# numba's disk cache is keyed on each function's own file, not on the functions it calls: after
+# editing the package, drop it so nothing stale gets loaded.
+clean-cache:
+	find dolfinx_invertible -name '*.nbi' -delete -o -name '*.nbc' -delete
+
+clean: clean-cache
 	rm -rf $(VENV) output *.egg-info

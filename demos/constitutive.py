@@ -152,7 +152,10 @@ def main() -> int:
     stretch = np.array(summary["compression"]["stretch"])
     for name, curve in summary["compression"]["curves"].items():
         values = [curve["energy"][int(np.argmin(abs(stretch - t)))] for t in (0.5, 0.0, -0.5)]
-        print(f"  {name:22s}" + "".join(f"{value if value is not None else float('inf'):14.5g}" for value in values))
+        print(
+            f"  {name:22s}"
+            + "".join(f"{value if value is not None else float('inf'):14.5g}" for value in values)
+        )
     print("2D element relaxation (projected Newton, energy line search):")
     failures = 0
     for name, run in summary["relaxation"].items():

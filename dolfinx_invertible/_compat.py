@@ -103,3 +103,65 @@ def cell_dofs(space) -> np.ndarray:
     if DOLFINX_VERSION < (0, 7):
         return dofmap.list.array.reshape(-1, dofmap.dof_layout.num_dofs)
     return np.asarray(dofmap.list)
+
+
+def assemble_matrix_into(matrix, form, bcs, diagonal: float) -> None:
+    """Add a bilinear form to ``matrix``, zeroing Dirichlet rows and columns and putting
+    ``diagonal`` on the Dirichlet diagonal; ends with a flush so another form can be added.
+
+    The flush is not optional: DOLFINx inserts the diagonal with INSERT_VALUES, and a later
+    ADD_VALUES without a flush in between is an error that release builds of DOLFINx 0.5 ignore
+    (the second form is silently dropped in serial) and that MPI assembly reports.
+    """
+    import dolfinx.fem.petsc
+    from petsc4py import PETSc
+
+    dolfinx.fem.petsc.assemble_matrix(matrix, form, bcs=bcs, diagonal=diagonal)
+    matrix.assemble(PETSc.Mat.AssemblyType.FLUSH)
+
+
+def lift_residual(residual, jacobians, bcs, solution) -> None:
+    """Dirichlet conditions on an assembled Newton residual, as DOLFINx's NonlinearProblem.
+
+    Each bilinear form in ``jacobians`` is lifted on its own: lifting is linear in the matrix, so
+    lifting by each summand equals lifting by the sum. ``solution`` must have current ghosts.
+    Afterwards the Dirichlet rows of ``residual`` hold ``solution - g``.
+    """
+    import dolfinx.fem.petsc
+    from petsc4py import PETSc
+
+    # Positional arguments: the scale keyword of 0.5 is called alpha from 0.7 on.
+    for jacobian in jacobians:
+        dolfinx.fem.petsc.apply_lifting(residual, [jacobian], [bcs], [solution], -1.0)
+    residual.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    dolfinx.fem.petsc.set_bc(residual, bcs, solution, -1.0)
+
+
+def set_dirichlet_values(vector, bcs) -> None:
+    """Overwrite the owned Dirichlet entries of a PETSc vector with the boundary values."""
+    import dolfinx.fem.petsc
+
+    dolfinx.fem.petsc.set_bc(vector, bcs)
+
+
+def locate_points(mesh, points: np.ndarray) -> np.ndarray:
+    """For each point (shape (n, 3)), an owned cell of this rank containing it, or -1."""
+    import dolfinx.geometry
+
+    tdim = mesh.topology.dim
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if DOLFINX_VERSION < (0, 7):
+        tree = dolfinx.geometry.BoundingBoxTree(mesh, tdim)
+        candidates = dolfinx.geometry.compute_collisions(tree, points)
+    else:
+        tree = dolfinx.geometry.bb_tree(mesh, tdim)
+        candidates = dolfinx.geometry.compute_collisions_points(tree, points)
+    colliding = dolfinx.geometry.compute_colliding_cells(mesh, candidates, points)
+    owned = mesh.topology.index_map(tdim).size_local
+    cells = np.full(len(points), -1, dtype=np.int32)
+    for index in range(len(points)):
+        found = colliding.links(index)
+        found = found[found < owned]
+        if len(found) > 0:
+            cells[index] = found[0]
+    return cells

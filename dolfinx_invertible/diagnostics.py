@@ -17,6 +17,7 @@ import ufl
 from mpi4py import MPI
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.forms import default_quadrature_degree
 from dolfinx_invertible.material import Material, NoEnergyError
 from dolfinx_invertible.principal import UNDEFINED_REGION
 from dolfinx_invertible.svd import polar_svd
@@ -25,7 +26,6 @@ __all__ = [
     "DIAGNOSTIC_NAMES",
     "ENERGY_SENTINEL",
     "cell_diagnostics",
-    "default_quadrature_degree",
     "summary",
 ]
 
@@ -36,17 +36,6 @@ DIAGNOSTIC_NAMES = ("min_J", "inverted", "energy_density", "min_singular_value",
 #: XDMF readers and ParaView's colour maps cope badly with inf, so the largest finite double
 #: stands in for it.
 ENERGY_SENTINEL = float(np.finfo(np.float64).max)
-
-
-def default_quadrature_degree(u: dolfinx.fem.Function) -> int:
-    """Default quadrature degree for the diagnostics of ``u``: max(1, 2·(k − 1)) for degree k.
-
-    This is the degree that integrates |∇u|² exactly on affine cells, i.e. the rule a solver
-    would use for the quadratic part of the energy. For P1 on simplices ∇u is constant per
-    cell, so the one-point rule it gives is exact for every diagnostic.
-    """
-    degree = u.function_space.ufl_element().degree()
-    return max(1, 2 * (degree - 1))
 
 
 def cell_diagnostics(
@@ -67,7 +56,8 @@ def cell_diagnostics(
         The constitutive model whose energy density and regions are reported.
     quadrature_degree
         Degree of the quadrature rule (basix default rule for the cell type) whose points are
-        sampled; ``None`` means :func:`default_quadrature_degree`. The degree of the rule the
+        sampled; ``None`` means the forms' default
+        (:func:`~dolfinx_invertible.forms.default_quadrature_degree`). The degree of the rule the
         solver assembles with gives diagnostics at exactly the points the solver sees.
 
     Returns
@@ -109,7 +99,7 @@ def cell_diagnostics(
             f"u must be a displacement with {dimension} components, got value shape {u.ufl_shape}"
         )
     if quadrature_degree is None:
-        quadrature_degree = default_quadrature_degree(u)
+        quadrature_degree = default_quadrature_degree(u.function_space.ufl_element().degree())
     elif int(quadrature_degree) != quadrature_degree or quadrature_degree < 0:
         raise ValueError(f"quadrature_degree must be an integer >= 0, got {quadrature_degree!r}")
 

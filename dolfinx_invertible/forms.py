@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import basix
 import dolfinx
-import numpy as np
 
-from dolfinx_invertible import _compat
-from dolfinx_invertible import kernels
+from dolfinx_invertible import _compat, kernels
 from dolfinx_invertible.material import Material
 
 __all__ = ["HyperelasticForms", "default_quadrature_degree"]

@@ -64,7 +64,7 @@ class ReferenceTables:
 
     @classmethod
     def from_basix(cls, element, geometry_element, quadrature_degree: int) -> ReferenceTables:
-        """Tables from Basix elements (displacement, scalar; and geometry) at a quadrature degree."""
+        """Tables from Basix elements (scalar displacement, geometry) at a quadrature degree."""
         import basix
 
         points, weights = basix.make_quadrature(element.cell_type, quadrature_degree)
@@ -190,6 +190,26 @@ def _unpack(c_):
 
 
 @numba.njit(cache=True)
+def _quadrature_point(
+    q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
+):
+    """Physical basis gradients and F at point ``q``; returns the weight times |det J|."""
+    nodes, d = gradients.shape
+    geometry_nodes = geometry.shape[0] // (weights.shape[0] * d)
+    scale = weights[q] * _physical_gradients(
+        coordinates,
+        geometry[q * geometry_nodes * d : (q + 1) * geometry_nodes * d].reshape(
+            (geometry_nodes, d)
+        ),
+        basis[q * nodes * d : (q + 1) * nodes * d].reshape((nodes, d)),
+        gradients,
+        jacobian,
+    )
+    _deformation_gradient(displacement, gradients, F)
+    return scale
+
+
+@numba.njit(cache=True)
 def _ids(c_):
     header = numba.carray(c_, HEADER)
     return int(header[4]), int(header[5]), header[6] != 0.0, header[7] != 0.0
@@ -208,16 +228,9 @@ def energy_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     F = np.empty((d, d))
     total = 0.0
     for q in range(points):
-        scale = weights[q] * _physical_gradients(
-            coordinates,
-            geometry[q * geometry_nodes * d : (q + 1) * geometry_nodes * d].reshape(
-                (geometry_nodes, d)
-            ),
-            basis[q * nodes * d : (q + 1) * nodes * d].reshape((nodes, d)),
-            gradients,
-            jacobian,
+        scale = _quadrature_point(
+            q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
         )
-        _deformation_gradient(displacement, gradients, F)
         psi, _ = point_energy(F, model_id, extension_id, positive_only, params, work)
         total += scale * psi
     A_[0] += total
@@ -237,16 +250,9 @@ def residual_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     F = np.empty((d, d))
     P = np.empty((d, d))
     for q in range(points):
-        scale = weights[q] * _physical_gradients(
-            coordinates,
-            geometry[q * geometry_nodes * d : (q + 1) * geometry_nodes * d].reshape(
-                (geometry_nodes, d)
-            ),
-            basis[q * nodes * d : (q + 1) * nodes * d].reshape((nodes, d)),
-            gradients,
-            jacobian,
+        scale = _quadrature_point(
+            q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
         )
-        _deformation_gradient(displacement, gradients, F)
         point_stress(F, model_id, extension_id, positive_only, params, work, P)
         for a in range(nodes):
             for i in range(d):
@@ -274,16 +280,9 @@ def tangent_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     # CB[(i, j), b, k] = Σ_l C[(i, j), (k, l)] ∂φ_b/∂X_l
     CB = np.empty((d * d, nodes, d))
     for q in range(points):
-        scale = weights[q] * _physical_gradients(
-            coordinates,
-            geometry[q * geometry_nodes * d : (q + 1) * geometry_nodes * d].reshape(
-                (geometry_nodes, d)
-            ),
-            basis[q * nodes * d : (q + 1) * nodes * d].reshape((nodes, d)),
-            gradients,
-            jacobian,
+        scale = _quadrature_point(
+            q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
         )
-        _deformation_gradient(displacement, gradients, F)
         point_tangent(F, model_id, extension_id, positive_only, params, project, work, P, C)
         for row in range(d * d):
             for b in range(nodes):

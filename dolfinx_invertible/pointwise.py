@@ -10,11 +10,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.invariants import invariant_energy, invariant_stress
 from dolfinx_invertible.principal import UNDEFINED_REGION, principal_derivatives
 from dolfinx_invertible.svd import polar_svd_point
 from dolfinx_invertible.tangent import first_piola, stress_derivative
-from dolfinx_invertible import workspace as ws
 
 __all__ = [
     "point_energy",
@@ -42,7 +42,9 @@ def point_energy(F, model_id, extension_id, positive_only, params, work):
     d = F.shape[0]
     sigma = ws.vector(work, ws.SIGMA, d)
     polar_svd_point(F, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
-    return principal_derivatives(model_id, extension_id, positive_only, sigma, params, _ENERGY, work)
+    return principal_derivatives(
+        model_id, extension_id, positive_only, sigma, params, _ENERGY, work
+    )
 
 
 @numba.njit(cache=True)
@@ -95,9 +97,7 @@ def energy_batch(F, model_id, extension_id, positive_only, params, energy, regio
 def stress_batch(F, model_id, extension_id, positive_only, params, P, region):
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
-        _, region[n] = point_stress(
-            F[n], model_id, extension_id, positive_only, params, work, P[n]
-        )
+        _, region[n] = point_stress(F[n], model_id, extension_id, positive_only, params, work, P[n])
 
 
 @numba.njit(cache=True)

@@ -9,12 +9,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.extensions.base import C1_ID, C2_ID, IFE_ID
 from dolfinx_invertible.extensions.c1 import c1_derivatives
 from dolfinx_invertible.extensions.c2 import c2_derivatives
 from dolfinx_invertible.extensions.ife import ife_derivatives
 from dolfinx_invertible.models.registry import model_derivatives_into, model_gradient_slope
-from dolfinx_invertible import workspace as ws
 
 __all__ = ["UNDEFINED_REGION", "principal_derivatives", "gradient_slope", "rotation_slope"]
 

@@ -130,9 +130,7 @@ def stress_derivative(model_id, region, sigma, params, work, project, C):
         for j in range(d):
             A[i, j] = hessian[i, j]
     if project:
-        clamp_symmetric(
-            A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d)
-        )
+        clamp_symmetric(A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d))
     for m in range(d):
         for alpha in range(n):
             total = 0.0
@@ -154,7 +152,8 @@ def stress_derivative(model_id, region, sigma, params, work, project, C):
                 twist = max(twist, 0.0)
             same = 0.5 * (stretch + twist)
             cross = 0.5 * (stretch - twist)
-            # x = vec(uᵢ vⱼᵀ), y = vec(uⱼ vᵢᵀ): a s sᵀ + b t tᵀ = same (xxᵀ + yyᵀ) + cross (xyᵀ + yxᵀ)
+            # x = vec(uᵢ vⱼᵀ), y = vec(uⱼ vᵢᵀ):
+            # a s sᵀ + b t tᵀ = same (xxᵀ + yyᵀ) + cross (xyᵀ + yxᵀ)
             for p in range(d):
                 for r in range(d):
                     alpha = p * d + r
@@ -167,9 +166,9 @@ def stress_derivative(model_id, region, sigma, params, work, project, C):
                                 continue
                             x_beta = U[p2, i] * V[r2, j]
                             y_beta = U[p2, j] * V[r2, i]
-                            C[alpha, beta] += same * (x_alpha * x_beta + y_alpha * y_beta) + cross * (
-                                x_alpha * y_beta + y_alpha * x_beta
-                            )
+                            C[alpha, beta] += same * (
+                                x_alpha * x_beta + y_alpha * y_beta
+                            ) + cross * (x_alpha * y_beta + y_alpha * x_beta)
     for alpha in range(n):
         for beta in range(alpha):
             C[alpha, beta] = C[beta, alpha]

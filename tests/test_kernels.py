@@ -14,8 +14,7 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfinx_invertible import C1, C2, Material, NeoHookean, lame
-from dolfinx_invertible import _compat
+from dolfinx_invertible import C1, C2, Material, NeoHookean, _compat, lame
 from dolfinx_invertible.forms import HyperelasticForms
 
 MU, LAM = lame(10.0, 0.3)
@@ -141,9 +140,7 @@ def test_patch_test_affine_map(cell, determinant_sign):
     interior = np.setdiff1d(np.arange(owned), boundary_dofs)
     boundary_scale = np.abs(values[np.intersect1d(boundary_dofs, np.arange(owned))])
     scale = MPI.COMM_WORLD.allreduce(boundary_scale.max(initial=0.0), op=MPI.MAX)
-    interior_max = MPI.COMM_WORLD.allreduce(
-        np.abs(values[interior]).max(initial=0.0), op=MPI.MAX
-    )
+    interior_max = MPI.COMM_WORLD.allreduce(np.abs(values[interior]).max(initial=0.0), op=MPI.MAX)
     # Boundary nodes carry the traction of the constant stress: a nonzero scale to compare with.
     assert scale > 1e-3 * MU
     assert interior_max <= 1e-12 * scale

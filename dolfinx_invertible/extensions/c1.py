@@ -14,10 +14,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.extensions.base import C1_ID, Extension
 from dolfinx_invertible.models.base import Model
-from dolfinx_invertible import workspace as ws
-from dolfinx_invertible.models.registry import model_derivatives, model_derivatives_into
+from dolfinx_invertible.models.registry import model_derivatives_into
 
 __all__ = ["C1", "c1_derivatives"]
 
@@ -97,9 +97,9 @@ def c1_derivatives(model_id, sigma, params, order, work):
     H = ws.matrix(work, ws.MODEL_H, d)
     T = ws.tensor3(work, ws.MODEL_T, d)
     Q = ws.tensor4(work, ws.MODEL_Q, d)
-    f_table = ws.table(work, ws.F_TABLE, d)
-    h_table = ws.table(work, ws.H_TABLE, d)
-    psi_q = model_derivatives(model_id, q, params, min(count + order, 4), g, H, T, Q, f_table, h_table)
+    psi_q = model_derivatives_into(
+        model_id, q, params, min(count + order, 4), work, ws.MODEL_G, ws.MODEL_H
+    )
     out_g = ws.vector(work, ws.G, d)
     out_H = ws.matrix(work, ws.H, d)
 

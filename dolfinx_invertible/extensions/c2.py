@@ -16,9 +16,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from dolfinx_invertible.extensions.base import C2_ID, Extension
-from dolfinx_invertible.models.registry import model_derivatives, model_derivatives_into
 from dolfinx_invertible import workspace as ws
+from dolfinx_invertible.extensions.base import C2_ID, Extension
+from dolfinx_invertible.models.registry import model_derivatives_into
 
 __all__ = ["C2", "c2_derivatives", "threshold_parameter"]
 
@@ -137,9 +137,7 @@ def c2_derivatives(model_id, sigma, params, order, work):
     H = ws.matrix(work, ws.MODEL_H, d)
     T = ws.tensor3(work, ws.MODEL_T, d)
     Q = ws.tensor4(work, ws.MODEL_Q, d)
-    f_table = ws.table(work, ws.F_TABLE, d)
-    h_table = ws.table(work, ws.H_TABLE, d)
-    psi_q = model_derivatives(model_id, q, params, order + 2, g, H, T, Q, f_table, h_table)
+    psi_q = model_derivatives_into(model_id, q, params, order + 2, work, ws.MODEL_G, ws.MODEL_H)
     slope = 0.0  # ψ′ along the segment: ∇Ψ̂(q)·a
     curvature = 0.0  # ψ″: aᵀ ∇²Ψ̂(q) a
     for i in range(d):

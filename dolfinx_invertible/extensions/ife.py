@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numba
 
+from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.extensions.base import IFE_ID, Extension
 from dolfinx_invertible.extensions.c2 import threshold_parameter
-from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.models.registry import model_derivatives_into
 
 __all__ = ["IFE", "ife_derivatives"]

@@ -9,10 +9,16 @@ from __future__ import annotations
 
 import numba
 
-from dolfinx_invertible.models import arap, corotated, fixed_corotated, neo_hookean, stvk
-from dolfinx_invertible.models import stable_neo_hookean
-from dolfinx_invertible.models.separable import separable_derivatives, separable_gradient_slope
 from dolfinx_invertible import workspace as ws
+from dolfinx_invertible.models import (
+    arap,
+    corotated,
+    fixed_corotated,
+    neo_hookean,
+    stable_neo_hookean,
+    stvk,
+)
+from dolfinx_invertible.models.separable import separable_derivatives, separable_gradient_slope
 
 __all__ = [
     "model_derivatives",

@@ -14,7 +14,6 @@ aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ) of the stress derivative's off-diago
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 __all__ = ["separable_derivatives", "separable_gradient_slope", "volume_derivative"]
 
