@@ -165,3 +165,17 @@ def locate_points(mesh, points: np.ndarray) -> np.ndarray:
         if len(found) > 0:
             cells[index] = found[0]
     return cells
+
+
+def geometry_dofmap(mesh) -> np.ndarray:
+    """Geometry nodes of every local cell (owned and ghost) as a (cells, nodes) array."""
+    dofmap = mesh.geometry.dofmap
+    if isinstance(dofmap, np.ndarray):
+        return dofmap
+    return dofmap.array.reshape(dofmap.num_nodes, -1)
+
+
+def boundary_condition_dof_count(bc) -> int:
+    """Number of dofs a DirichletBC constrains that this rank owns."""
+    _, owned = bc.dof_indices()
+    return int(owned)

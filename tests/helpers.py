@@ -7,9 +7,11 @@ closed-form reference energies written straight from the formulas in DESIGN.md s
 
 import itertools
 
+import dolfinx.fem
 import numpy as np
 
 import dolfinx_invertible as di
+from dolfinx_invertible import _compat
 
 # Deliberately different order-one values so that a mu/lambda mix-up cannot go unnoticed.
 MU = 0.8
@@ -291,3 +293,21 @@ def is_defined(name, ext, sigma):
     if name == "NeoHookean" and ext is None:
         return jdet(sigma) > 0
     return np.ones(np.shape(sigma)[:-1], dtype=bool)
+
+
+def values_at_points(function: dolfinx.fem.Function, points: np.ndarray) -> np.ndarray:
+    """Values at points (n, 3) on every rank, gathered from the ranks owning a cell there."""
+    mesh = function.function_space.mesh
+    cells = _compat.locate_points(mesh, points)
+    found = cells >= 0
+    local = np.full((len(points), 3), np.nan)
+    if found.any():
+        local[found] = function.eval(points[found], cells[found])
+    # The lowest rank that found a point wins, so every rank returns identical values even for a
+    # point on a face between cells of different ranks.
+    gathered = np.full_like(local, np.nan)
+    for values in mesh.comm.allgather(local):
+        missing = np.isnan(gathered[:, 0])
+        gathered[missing] = values[missing]
+    assert not np.isnan(gathered).any(), "a probe point lies in no cell"
+    return gathered

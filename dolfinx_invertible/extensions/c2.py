@@ -14,59 +14,17 @@ of Ψ̂ at q.
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.extensions.base import C2_ID, Extension
 from dolfinx_invertible.models.registry import model_derivatives_into
+from dolfinx_invertible.polynomial import first_root_in_unit_interval
 
 __all__ = ["C2", "c2_derivatives", "threshold_parameter"]
 
 # |∂J/∂s| at the crossing is bounded below by this (relative): a tangential crossing is a
 # measure-zero event that would otherwise divide by zero.
 _MIN_CROSSING_SLOPE = 1e-12
-
-
-@numba.njit(cache=True)
-def _volume_polynomial(t, a, eps):
-    value = 1.0
-    for i in range(a.shape[0]):
-        value *= 1.0 + t * a[i]
-    return value - eps
-
-
-@numba.njit(cache=True)
-def _volume_polynomial_slope(t, a):
-    d = a.shape[0]
-    total = 0.0
-    for i in range(d):
-        term = a[i]
-        for j in range(d):
-            if j != i:
-                term *= 1.0 + t * a[j]
-        total += term
-    return total
-
-
-@numba.njit(cache=True)
-def _bracketed_root(lo, hi, a, eps):
-    """Root of the volume polynomial in [lo, hi], where it decreases from > 0 to ≤ 0."""
-    t = 0.5 * (lo + hi)
-    for _ in range(100):
-        value = _volume_polynomial(t, a, eps)
-        if value > 0.0:
-            lo = t
-        else:
-            hi = t
-        slope = _volume_polynomial_slope(t, a)
-        candidate = t - value / slope if slope < 0.0 else 0.5 * (lo + hi)
-        # Newton while it stays inside the bracket, bisection otherwise.
-        if not (lo < candidate < hi):
-            candidate = 0.5 * (lo + hi)
-        if abs(candidate - t) <= 1e-16 * max(t, 1e-300) or hi - lo <= 1e-17:
-            return candidate
-        t = candidate
-    return t
 
 
 @numba.njit(cache=True)
@@ -82,30 +40,9 @@ def threshold_parameter(a, eps):
             e2 += a[i] * a[j]
     if d == 3:
         e3 = a[0] * a[1] * a[2]
-    # Critical points of the polynomial split [0, 1] into monotone pieces; the first piece whose
-    # right end is at or below ε holds the first crossing.
-    c0 = 2.0
-    c1 = 2.0
-    if e3 != 0.0:
-        discriminant = 4.0 * e2 * e2 - 12.0 * e1 * e3
-        if discriminant >= 0.0:
-            root = np.sqrt(discriminant)
-            half = -0.5 * (2.0 * e2 + (root if e2 >= 0.0 else -root))
-            if half != 0.0:
-                c0 = half / (3.0 * e3)
-                c1 = e1 / half
-    elif e2 != 0.0:
-        c0 = -e1 / (2.0 * e2)
-    if c1 < c0:
-        c0, c1 = c1, c0
-    lo = 0.0
-    for hi in (c0, c1, 1.0):
-        if not (lo < hi <= 1.0):
-            continue
-        if _volume_polynomial(hi, a, eps) <= 0.0:
-            return _bracketed_root(lo, hi, a, eps)
-        lo = hi
-    return 1.0
+    s = first_root_in_unit_interval(1.0 - eps, e1, e2, e3)
+    # J(σ) < ε guarantees a crossing; round-off at J(σ) ≈ ε may hide it at s = 1.
+    return min(s, 1.0)
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,75 @@
+"""The first crossing of a cubic through zero on (0, 1], robustly and without allocation.
+
+Both the C2 extension (where the segment from the rest point meets J = ε) and the
+inversion-free line search (where a cell's volume falls to a fraction of its current value) ask
+the same question of a polynomial of degree ≤ 3 in the step parameter.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["first_root_in_unit_interval"]
+
+
+@numba.njit(cache=True)
+def _value(t, c0, c1, c2, c3):
+    return c0 + t * (c1 + t * (c2 + t * c3))
+
+
+@numba.njit(cache=True)
+def _slope(t, c1, c2, c3):
+    return c1 + t * (2.0 * c2 + 3.0 * t * c3)
+
+
+@numba.njit(cache=True)
+def _bracketed_root(lo, hi, c0, c1, c2, c3):
+    """Root in [lo, hi] where the cubic is monotone and goes from > 0 to ≤ 0."""
+    t = 0.5 * (lo + hi)
+    for _ in range(100):
+        value = _value(t, c0, c1, c2, c3)
+        if value > 0.0:
+            lo = t
+        else:
+            hi = t
+        slope = _slope(t, c1, c2, c3)
+        candidate = t - value / slope if slope < 0.0 else 0.5 * (lo + hi)
+        # Newton while it stays inside the bracket, bisection otherwise.
+        if not (lo < candidate < hi):
+            candidate = 0.5 * (lo + hi)
+        if abs(candidate - t) <= 1e-16 * max(t, 1e-300) or hi - lo <= 1e-17:
+            return candidate
+        t = candidate
+    return t
+
+
+@numba.njit(cache=True)
+def first_root_in_unit_interval(c0, c1, c2, c3):
+    """Smallest t in (0, 1] where c0 + c1 t + c2 t² + c3 t³ falls to 0, given c0 > 0.
+
+    Returns 2.0 when the cubic stays positive on (0, 1]. The critical points split [0, 1] into
+    monotone pieces; the first piece whose right end is ≤ 0 holds the first crossing.
+    """
+    first = 2.0
+    second = 2.0
+    if c3 != 0.0:
+        discriminant = 4.0 * c2 * c2 - 12.0 * c1 * c3
+        if discriminant >= 0.0:
+            root = np.sqrt(discriminant)
+            half = -0.5 * (2.0 * c2 + (root if c2 >= 0.0 else -root))
+            if half != 0.0:
+                first = half / (3.0 * c3)
+                second = c1 / half
+    elif c2 != 0.0:
+        first = -c1 / (2.0 * c2)
+    if second < first:
+        first, second = second, first
+    lo = 0.0
+    for hi in (first, second, 1.0):
+        if not (lo < hi <= 1.0):
+            continue
+        if _value(hi, c0, c1, c2, c3) <= 0.0:
+            return _bracketed_root(lo, hi, c0, c1, c2, c3)
+        lo = hi
+    return 2.0

@@ -1,0 +1,165 @@
+"""A hyperelastic problem for an existing DOLFINx script: material + BCs + extra UFL terms."""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import dolfinx
+import numpy as np
+import ufl
+from mpi4py import MPI
+
+from dolfinx_invertible import _compat
+from dolfinx_invertible.forms import HyperelasticForms
+from dolfinx_invertible.line_search import InversionFreeStep
+from dolfinx_invertible.material import Material
+from dolfinx_invertible.solver import DEFAULT_OPTIONS_PREFIX, EnergyProblem, NewtonSolver
+
+__all__ = ["HyperelasticProblem", "check_mesh", "check_boundary_conditions", "external_forms"]
+
+# A cell whose |volume| is below this fraction of the mean cell volume counts as degenerate.
+_DEGENERATE_VOLUME = 1e-12
+
+
+def check_mesh(mesh) -> None:
+    """Refuse a reference mesh with degenerate (zero-volume) cells, naming them.
+
+    DOLFINx does not orient cells, so the sign of a cell's volume carries no meaning there and
+    the kernels integrate with |det J|; a cell of (near) zero volume has no valid reference
+    configuration, and every quantity per unit reference volume is undefined on it.
+    """
+    tdim = mesh.topology.dim
+    cells = np.arange(mesh.topology.index_map(tdim).size_local, dtype=np.int32)
+    geometry = mesh.geometry.x[:, :tdim]
+    nodes = _compat.geometry_dofmap(mesh)[cells]
+    # Simplices: the first tdim edges from vertex 0; quadrilaterals/hexahedra: the edges from
+    # vertex 0 to its neighbours 1, 2 (and 4) in DOLFINx's tensor-product numbering.
+    corners = (1, 2) if tdim == 2 else ((1, 2, 3) if nodes.shape[1] == 4 else (1, 2, 4))
+    edges = np.stack([geometry[nodes[:, c]] - geometry[nodes[:, 0]] for c in corners], axis=1)
+    volumes = np.abs(np.linalg.det(edges))
+    total = mesh.comm.allreduce(float(volumes.sum()), op=MPI.SUM)
+    count = mesh.comm.allreduce(len(volumes), op=MPI.SUM)
+    threshold = _DEGENERATE_VOLUME * total / max(count, 1)
+    local_bad = np.flatnonzero(volumes <= threshold)
+    global_ids = mesh.topology.index_map(tdim).local_range[0] + local_bad
+    bad = mesh.comm.allgather(global_ids[:5].tolist())
+    bad_count = mesh.comm.allreduce(len(local_bad), op=MPI.SUM)
+    if bad_count:
+        first = sorted(i for ids in bad for i in ids)[:5]
+        raise ValueError(
+            f"the reference mesh has {bad_count} degenerate (zero-volume) cells, first global "
+            f"cell ids {first}; fix the mesh before solving"
+        )
+
+
+def check_boundary_conditions(bcs: Sequence[Any], comm) -> None:
+    """Refuse Dirichlet conditions whose markers select no dof anywhere."""
+    for index, bc in enumerate(bcs):
+        owned = _compat.boundary_condition_dof_count(bc)
+        if comm.allreduce(owned, op=MPI.SUM) == 0:
+            raise ValueError(
+                f"Dirichlet condition {index} constrains no degree of freedom: its marker or "
+                "facet/dof selection matched nothing on the mesh"
+            )
+
+
+def external_forms(u, energy) -> tuple[Any, Any, Any | None]:
+    """Compiled (energy, residual, jacobian) of a UFL potential in ``u``; jacobian None if zero.
+
+    A potential linear in ``u`` (a dead load) has a zero second derivative, which UFL reduces to
+    an empty form that DOLFINx cannot compile; it then contributes nothing to the tangent.
+    """
+    residual = ufl.derivative(energy, u)
+    jacobian = ufl.derivative(residual, u)
+    jacobian_is_zero = ufl.algorithms.expand_derivatives(jacobian).empty()
+    return (
+        dolfinx.fem.form(energy),
+        dolfinx.fem.form(residual),
+        None if jacobian_is_zero else dolfinx.fem.form(jacobian),
+    )
+
+
+class HyperelasticProblem:
+    """Minimise ∫Ψ(F) dX + (extra UFL potential) over ``u`` subject to Dirichlet conditions.
+
+    Parameters
+    ----------
+    u
+        Displacement (vector P1/P2 Lagrange); holds the initial guess and, after
+        :meth:`solve`, the solution.
+    material
+        The :class:`~dolfinx_invertible.Material`.
+    bcs
+        ``dolfinx.fem.DirichletBC`` objects on the space of ``u``.
+    external_energy
+        A UFL scalar form in ``u`` added to the elastic energy: loads as potentials, e.g.
+        ``-ufl.dot(traction, u) * ds`` or ``-ufl.dot(body_force, u) * dx``, springs, penalties.
+        Its residual and tangent come from ``ufl.derivative`` and are assembled into the same
+        PETSc vector and matrix as the elastic kernels.
+    quadrature_degree, project
+        See :class:`~dolfinx_invertible.forms.HyperelasticForms`.
+    petsc_options, options_prefix, pc
+        See :class:`~dolfinx_invertible.solver.NewtonSolver`; command-line options with the
+        prefix override everything.
+    inversion_free
+        If given (a fraction in (0, 1), 0.1 in the classical method), cap every Newton step so
+        that no quadrature point's volume falls below that fraction of its current value
+        (:class:`~dolfinx_invertible.line_search.InversionFreeStep`); meant for plain barrier
+        energies such as Neo-Hookean without extension, started from an uninverted state.
+
+    Attributes
+    ----------
+    forms
+        The :class:`~dolfinx_invertible.forms.HyperelasticForms` of the material.
+    problem, solver
+        The :class:`~dolfinx_invertible.solver.EnergyProblem` and
+        :class:`~dolfinx_invertible.solver.NewtonSolver`.
+    """
+
+    def __init__(
+        self,
+        u,
+        material: Material,
+        bcs: Sequence[Any] = (),
+        external_energy=None,
+        quadrature_degree: int | None = None,
+        project: bool = True,
+        petsc_options: dict[str, Any] | None = None,
+        options_prefix: str = DEFAULT_OPTIONS_PREFIX,
+        pc: str = "gamg",
+        inversion_free: float | None = None,
+    ):
+        mesh = u.function_space.mesh
+        check_mesh(mesh)
+        bcs = list(bcs)
+        check_boundary_conditions(bcs, mesh.comm)
+        local_finite = bool(np.all(np.isfinite(u.x.array)))
+        if not mesh.comm.allreduce(local_finite, op=MPI.LAND):
+            raise ValueError("the initial displacement u contains NaN or Inf values")
+        self.u = u
+        self.forms = HyperelasticForms(u, material, quadrature_degree, project)
+        has_energy = material.extension is None or material.extension.has_energy
+        energy = [self.forms.energy] if has_energy else []
+        residual = [self.forms.residual]
+        jacobian = [self.forms.jacobian]
+        if external_energy is not None:
+            extra_energy, extra_residual, extra_jacobian = external_forms(u, external_energy)
+            if has_energy:
+                energy.append(extra_energy)
+            residual.append(extra_residual)
+            if extra_jacobian is not None:
+                jacobian.append(extra_jacobian)
+        self.problem = EnergyProblem(u, energy, residual, jacobian, bcs)
+        step_limit = None
+        if inversion_free is not None:
+            step_limit = InversionFreeStep(u, inversion_free, self.forms.quadrature_degree)
+        self.solver = NewtonSolver(
+            self.problem, petsc_options, options_prefix, pc, step_limit=step_limit
+        )
+
+    def solve(self):
+        """Solve from the current ``u``; returns a :class:`~dolfinx_invertible.solver.SolveResult`.
+
+        On failure ``u`` keeps its value from before the call (see ``result.converged``).
+        """
+        return self.solver.solve()
