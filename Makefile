@@ -49,6 +49,7 @@ test-mpi: setup
 
 demo: setup
 	$(PYTHON) demos/constitutive.py
+	$(MPIEXEC) -n 2 $(PYTHON) demos/collapse.py
 
 bench: setup
 	$(PYTHON) -m dolfinx_invertible bench material

@@ -59,7 +59,8 @@ class ImplicitDynamics:
         Consecutive halvings of the step before :meth:`step` gives up.
     **problem_options
         Passed to :class:`~dolfinx_invertible.problem.HyperelasticProblem`
-        (``quadrature_degree``, ``project``, ``petsc_options``, ``options_prefix``, ``pc``).
+        (``quadrature_degree``, ``project`` — default ``True`` here —, ``petsc_options``,
+        ``options_prefix``, ``pc``, ``inversion_free``).
     """
 
     def __init__(
@@ -113,6 +114,10 @@ class ImplicitDynamics:
             energy = energy + external_energy
         if boundary_update is not None:
             boundary_update(self.time)
+        # Dynamics scenes are where elements get crushed and inverted, and the mass term keeps
+        # the projected system well conditioned: project unless told otherwise (an "auto"
+        # exact-first attempt mostly fails there and doubles the cost of a step).
+        problem_options.setdefault("project", True)
         self.problem = HyperelasticProblem(u, material, bcs, energy, **problem_options)
         self._kinetic_energy_form = dolfinx.fem.form(
             0.5 * density * ufl.dot(self.velocity, self.velocity) * ufl.dx(domain=mesh)

@@ -107,6 +107,11 @@ class HyperelasticForms:
         self.residual = _compat.custom_form([space], residual, *arguments)
         self.jacobian = _compat.custom_form([space, space], tangent, *arguments)
 
+    def set_projection(self, project: bool) -> None:
+        """Switch the tangent between SPD-projected and exact, without recompiling."""
+        self.project = bool(project)
+        self.constants.value[kernels.PROJECT_SLOT] = float(self.project)
+
     def set_material(self, material: Material) -> None:
         """Switch to another material of the same kind (model and extension type).
 

@@ -143,6 +143,7 @@ def _deformation_gradient(displacement, gradients, F):
 # quadrature rule and material; DOLFINx packs constants once per assembly, not per cell.
 HEADER = 8  # dimension, nodes, points, geometry nodes, model, extension, positive_only, project
 PARAMETER_COUNT = 4  # Material.parameters: [μ, λ, ε, k]
+PROJECT_SLOT = 7  # header entry of the projection switch
 
 
 def pack_constants(tables: ReferenceTables, dimension: int, material, project: bool) -> np.ndarray:
@@ -212,7 +213,7 @@ def _quadrature_point(
 @numba.njit(cache=True)
 def _ids(c_):
     header = numba.carray(c_, HEADER)
-    return int(header[4]), int(header[5]), header[6] != 0.0, header[7] != 0.0
+    return int(header[4]), int(header[5]), header[6] != 0.0, header[PROJECT_SLOT] != 0.0
 
 
 @numba.cfunc(_SIGNATURE, nopython=True, cache=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Sequence
 
 import dolfinx
@@ -13,7 +14,12 @@ from dolfinx_invertible import _compat
 from dolfinx_invertible.forms import HyperelasticForms
 from dolfinx_invertible.line_search import InversionFreeStep
 from dolfinx_invertible.material import Material
-from dolfinx_invertible.solver import DEFAULT_OPTIONS_PREFIX, EnergyProblem, NewtonSolver
+from dolfinx_invertible.solver import (
+    DEFAULT_OPTIONS_PREFIX,
+    EnergyProblem,
+    NewtonSolver,
+    SolveResult,
+)
 
 __all__ = ["HyperelasticProblem", "check_mesh", "check_boundary_conditions", "external_forms"]
 
@@ -96,8 +102,15 @@ class HyperelasticProblem:
         ``-ufl.dot(traction, u) * ds`` or ``-ufl.dot(body_force, u) * dx``, springs, penalties.
         Its residual and tangent come from ``ufl.derivative`` and are assembled into the same
         PETSc vector and matrix as the elastic kernels.
-    quadrature_degree, project
+    quadrature_degree
         See :class:`~dolfinx_invertible.forms.HyperelasticForms`.
+    project
+        ``True``: always the SPD-projected tangent (robust, but Newton then converges only
+        linearly wherever the exact tangent is indefinite, e.g. under compression);
+        ``False``: always the exact tangent (quadratic convergence; CG may fail where the
+        energy is not locally convex); ``"auto"`` (default): every solve first runs with the
+        exact tangent and, only if that fails, again from the same start with the projected
+        one. ``result.tangent`` says which one produced the result.
     petsc_options, options_prefix, pc
         See :class:`~dolfinx_invertible.solver.NewtonSolver`; command-line options with the
         prefix override everything.
@@ -123,7 +136,7 @@ class HyperelasticProblem:
         bcs: Sequence[Any] = (),
         external_energy=None,
         quadrature_degree: int | None = None,
-        project: bool = True,
+        project: bool | str = "auto",
         petsc_options: dict[str, Any] | None = None,
         options_prefix: str = DEFAULT_OPTIONS_PREFIX,
         pc: str = "gamg",
@@ -137,7 +150,10 @@ class HyperelasticProblem:
         if not mesh.comm.allreduce(local_finite, op=MPI.LAND):
             raise ValueError("the initial displacement u contains NaN or Inf values")
         self.u = u
-        self.forms = HyperelasticForms(u, material, quadrature_degree, project)
+        if project not in (True, False, "auto"):
+            raise ValueError(f"project must be True, False or 'auto', got {project!r}")
+        self.project = project
+        self.forms = HyperelasticForms(u, material, quadrature_degree, project is True)
         has_energy = material.extension is None or material.extension.has_energy
         energy = [self.forms.energy] if has_energy else []
         residual = [self.forms.residual]
@@ -157,9 +173,28 @@ class HyperelasticProblem:
             self.problem, petsc_options, options_prefix, pc, step_limit=step_limit
         )
 
-    def solve(self):
+    def solve(self) -> SolveResult:
         """Solve from the current ``u``; returns a :class:`~dolfinx_invertible.solver.SolveResult`.
 
         On failure ``u`` keeps its value from before the call (see ``result.converged``).
         """
-        return self.solver.solve()
+        if self.project != "auto":
+            result = self.solver.solve()
+            return dataclasses.replace(result, tangent="projected" if self.project else "exact")
+        self.forms.set_projection(False)
+        exact = self.solver.solve()
+        if exact.converged:
+            return dataclasses.replace(exact, tangent="exact")
+        self.forms.set_projection(True)
+        try:
+            projected = self.solver.solve()
+        finally:
+            self.forms.set_projection(False)
+        # Report the work of both attempts: that is what the step cost.
+        return dataclasses.replace(
+            projected,
+            tangent="projected",
+            newton_iterations=exact.newton_iterations + projected.newton_iterations,
+            linear_iterations=exact.linear_iterations + projected.linear_iterations,
+            wall_time=exact.wall_time + projected.wall_time,
+        )

@@ -135,6 +135,9 @@ class SolveResult:
         Seconds spent in :meth:`NewtonSolver.solve` on this rank.
     residual_history
         Residual norms from the initial guess to the last iterate.
+    tangent
+        Which tangent produced the result, where a caller chooses: ``"exact"`` or
+        ``"projected"`` (see :class:`~dolfinx_invertible.problem.HyperelasticProblem`).
     """
 
     converged: bool
@@ -146,6 +149,7 @@ class SolveResult:
     energy: float | None
     wall_time: float
     residual_history: tuple[float, ...] = ()
+    tangent: str = ""
 
 
 def _as_form_list(forms: Any, rank: int, name: str) -> list:
@@ -614,7 +618,7 @@ def _load_targets(steps: int | Sequence[float]) -> list[float]:
 
 
 def solve_load_steps(
-    solver: NewtonSolver,
+    solver: Any,
     update_load: Callable[[float], None],
     steps: int | Sequence[float],
     max_cuts: int = 6,
@@ -631,7 +635,8 @@ def solve_load_steps(
     Parameters
     ----------
     solver
-        Solver whose problem's ``u`` holds the state at t = 0 on entry.
+        A :class:`NewtonSolver` or a :class:`~dolfinx_invertible.problem.HyperelasticProblem`
+        (anything with ``solve()`` and ``problem.u``); ``u`` holds the state at t = 0 on entry.
     update_load
         Sets the load for a pseudo-time in [0, 1].
     steps

@@ -14,8 +14,7 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfinx_invertible import C1, C2, Material, NeoHookean, _compat, lame
-from dolfinx_invertible.forms import HyperelasticForms
+from dolfinx_invertible import C1, C2, HyperelasticForms, Material, NeoHookean, _compat, lame
 
 MU, LAM = lame(10.0, 0.3)
 
@@ -27,6 +26,10 @@ def make_mesh(cell: str):
     if cell == "quadrilateral":
         return dolfinx.mesh.create_unit_square(
             comm, 3, 3, cell_type=dolfinx.mesh.CellType.quadrilateral
+        )
+    if cell == "hexahedron":
+        return dolfinx.mesh.create_unit_cube(
+            comm, 2, 2, 2, cell_type=dolfinx.mesh.CellType.hexahedron
         )
     return dolfinx.mesh.create_unit_cube(comm, 2, 2, 2)
 
@@ -76,7 +79,7 @@ def assemble(energy, residual, jacobian):
 @pytest.mark.parametrize(
     "cell, degree",
     [("triangle", 1), ("triangle", 2), ("tetrahedron", 1), ("tetrahedron", 2),
-     ("quadrilateral", 1), ("quadrilateral", 2)],
+     ("quadrilateral", 1), ("quadrilateral", 2), ("hexahedron", 1)],
 )  # fmt: skip
 def test_kernels_match_ffcx_neo_hookean(cell, degree):
     """Uninverted state: energy, residual and exact tangent equal FFCx's to 1e-10 relative."""

@@ -15,11 +15,11 @@ import dolfinx.mesh
 import numpy as np
 import pytest
 import ufl
+from helpers import values_at_points
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
-from helpers import values_at_points
 from dolfinx_invertible.solver import (
     EnergyProblem,
     NewtonSolver,
