@@ -143,6 +143,11 @@ class HyperelasticProblem:
         inversion_free: float | None = None,
     ):
         mesh = u.function_space.mesh
+        if project not in (True, False, "auto"):
+            raise ValueError(f"project must be True, False or 'auto', got {project!r}")
+        self.project = project
+        # The forms validate the space and geometry first: the volume check assumes both.
+        self.forms = HyperelasticForms(u, material, quadrature_degree, project is True)
         check_mesh(mesh)
         bcs = list(bcs)
         check_boundary_conditions(bcs, mesh.comm)
@@ -150,10 +155,6 @@ class HyperelasticProblem:
         if not mesh.comm.allreduce(local_finite, op=MPI.LAND):
             raise ValueError("the initial displacement u contains NaN or Inf values")
         self.u = u
-        if project not in (True, False, "auto"):
-            raise ValueError(f"project must be True, False or 'auto', got {project!r}")
-        self.project = project
-        self.forms = HyperelasticForms(u, material, quadrature_degree, project is True)
         has_energy = material.extension is None or material.extension.has_energy
         energy = [self.forms.energy] if has_energy else []
         residual = [self.forms.residual]
