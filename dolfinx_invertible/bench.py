@@ -282,12 +282,30 @@ def _add_material_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
-# name -> (help, argument setup, command); further benchmarks (e.g. "assembly") register here.
+def _assembly_arguments(parser: argparse.ArgumentParser) -> None:
+    from dolfinx_invertible import bench_assembly
+
+    bench_assembly.add_arguments(parser)
+
+
+def _assembly_command(arguments: argparse.Namespace) -> int:
+    # Imported here: it needs DOLFINx, which the material benchmark does not.
+    from dolfinx_invertible import bench_assembly
+
+    return bench_assembly.command(arguments)
+
+
+# name -> (help, argument setup, command)
 SUBCOMMANDS = {
     "material": (
         "Neo-Hookean + C2 material kernels: numba vs NumPy reference",
         _add_material_arguments,
         _material_command,
+    ),
+    "assembly": (
+        "residual and tangent assembly: our kernels vs FFCx's UFL Neo-Hookean and a zero kernel",
+        _assembly_arguments,
+        _assembly_command,
     ),
 }
 
@@ -315,7 +333,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     arguments = _parser().parse_args(argv)
-    if arguments.points < 1 or arguments.repeats < 1:
+    if getattr(arguments, "points", 1) < 1 or arguments.repeats < 1:
         print("--points and --repeats must be at least 1", file=sys.stderr)
         return 2
     if not _PINNED_BEFORE_IMPORT:
