@@ -24,17 +24,10 @@ import time
 import numba
 import numpy as np
 
-_SIGNATURE = numba.types.void(
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.int32),
-    numba.types.CPointer(numba.types.uint8),
-)
+from dolfinx_invertible.kernels import KERNEL_SIGNATURE
 
 
-@numba.cfunc(_SIGNATURE, nopython=True, cache=True)
+@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
 def _zero_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     """Writes nothing: what is left is DOLFINx's gathering and insertion."""
 

@@ -34,7 +34,7 @@ __all__ = [
 
 # ufcx tabulate_tensor up to DOLFINx 0.9: (A, w, c, coordinate_dofs, entity_local_index,
 # quadrature_permutation).
-_SIGNATURE = numba.types.void(
+KERNEL_SIGNATURE = numba.types.void(
     numba.types.CPointer(numba.types.float64),
     numba.types.CPointer(numba.types.float64),
     numba.types.CPointer(numba.types.float64),
@@ -172,7 +172,7 @@ def pack_constants(tables: ReferenceTables, dimension: int, material, project: b
 
 
 @numba.njit(cache=True)
-def _unpack(c_):
+def _unpack(c_, w_, coordinates_):
     header = numba.carray(c_, HEADER)
     d = int(header[0])
     nodes = int(header[1])
@@ -187,7 +187,11 @@ def _unpack(c_):
     basis = c[start : start + points * nodes * d]
     start += points * nodes * d
     geometry = c[start : start + points * geometry_nodes * d]
-    return d, nodes, points, geometry_nodes, params, weights, basis, geometry
+    displacement = numba.carray(w_, (nodes, d))
+    coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
+    # Scratch for one quadrature point: physical basis gradients, geometry Jacobian, F, P.
+    scratch = (np.empty((nodes, d)), np.empty((d, d)), np.empty((d, d)), np.empty((d, d)))
+    return d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch
 
 
 @numba.njit(cache=True)
@@ -216,17 +220,15 @@ def _ids(c_):
     return int(header[4]), int(header[5]), header[6] != 0.0, header[PROJECT_SLOT] != 0.0
 
 
-@numba.cfunc(_SIGNATURE, nopython=True, cache=True)
+@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
 def energy_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     """Cell energy ∫Ψ(F) dX."""
-    d, nodes, points, geometry_nodes, params, weights, basis, geometry = _unpack(c_)
+    d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
+        _unpack(c_, w_, coordinates_)
+    )
+    gradients, jacobian, F, P = scratch
     model_id, extension_id, positive_only, _ = _ids(c_)
-    displacement = numba.carray(w_, (nodes, d))
-    coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
     work = ws.new_workspace(ws.stack_buffer())
-    gradients = np.empty((nodes, d))
-    jacobian = np.empty((d, d))
-    F = np.empty((d, d))
     total = 0.0
     for q in range(points):
         scale = _quadrature_point(
@@ -237,19 +239,16 @@ def energy_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     A_[0] += total
 
 
-@numba.cfunc(_SIGNATURE, nopython=True, cache=True)
+@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
 def residual_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     """Cell residual ∫ P : ∇φ dX."""
-    d, nodes, points, geometry_nodes, params, weights, basis, geometry = _unpack(c_)
+    d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
+        _unpack(c_, w_, coordinates_)
+    )
+    gradients, jacobian, F, P = scratch
     model_id, extension_id, positive_only, _ = _ids(c_)
     A = numba.carray(A_, nodes * d)
-    displacement = numba.carray(w_, (nodes, d))
-    coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
     work = ws.new_workspace(ws.stack_buffer())
-    gradients = np.empty((nodes, d))
-    jacobian = np.empty((d, d))
-    F = np.empty((d, d))
-    P = np.empty((d, d))
     for q in range(points):
         scale = _quadrature_point(
             q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
@@ -263,20 +262,17 @@ def residual_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
                 A[a * d + i] += scale * total
 
 
-@numba.cfunc(_SIGNATURE, nopython=True, cache=True)
+@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
 def tangent_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     """Cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
-    d, nodes, points, geometry_nodes, params, weights, basis, geometry = _unpack(c_)
+    d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
+        _unpack(c_, w_, coordinates_)
+    )
+    gradients, jacobian, F, P = scratch
     model_id, extension_id, positive_only, project = _ids(c_)
     size = nodes * d
     A = numba.carray(A_, (size, size))
-    displacement = numba.carray(w_, (nodes, d))
-    coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
     work = ws.new_workspace(ws.stack_buffer())
-    gradients = np.empty((nodes, d))
-    jacobian = np.empty((d, d))
-    F = np.empty((d, d))
-    P = np.empty((d, d))
     C = np.empty((d * d, d * d))
     # CB[(i, j), b, k] = Σ_l C[(i, j), (k, l)] ∂φ_b/∂X_l
     CB = np.empty((d * d, nodes, d))

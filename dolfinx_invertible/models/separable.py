@@ -20,13 +20,11 @@ __all__ = ["separable_derivatives", "separable_gradient_slope", "volume_derivati
 
 @numba.njit(cache=True)
 def volume_derivative(sigma, i, j, k, l):
-    """Mixed partial of J = Πσ over the listed indices (−1 = unused), for d ≤ 3.
+    """Mixed partial of J = Πσ over ``i`` and the listed indices (−1 = unused), for d ≤ 3.
 
     J is multilinear, so a repeated index gives 0 and distinct ones drop their factors.
     """
     d = sigma.shape[0]
-    if i < 0:
-        return sigma[0] * sigma[1] * (sigma[2] if d == 3 else 1.0)
     if j < 0:
         if d == 2:
             return sigma[1 - i]
