@@ -13,6 +13,8 @@ import numpy as np
 
 __all__ = [
     "DOLFINX_VERSION",
+    "KERNEL_SIGNATURE",
+    "KERNEL_TAKES_CUSTOM_DATA",
     "vector_function_space",
     "scalar_function_space",
     "petsc_vector",
@@ -21,6 +23,30 @@ __all__ = [
 ]
 
 DOLFINX_VERSION = tuple(int(part) for part in dolfinx.__version__.split(".")[:2])
+
+# ufcx tabulate_tensor: (A, w, c, coordinate_dofs, entity_local_index, quadrature_permutation),
+# plus a ``void* custom_data`` from DOLFINx 0.10 on.
+KERNEL_TAKES_CUSTOM_DATA = DOLFINX_VERSION >= (0, 10)
+
+
+def _kernel_signature():
+    import numba
+
+    pointer = numba.types.CPointer
+    arguments = [
+        pointer(numba.types.float64),
+        pointer(numba.types.float64),
+        pointer(numba.types.float64),
+        pointer(numba.types.float64),
+        pointer(numba.types.int32),
+        pointer(numba.types.uint8),
+    ]
+    if KERNEL_TAKES_CUSTOM_DATA:
+        arguments.append(numba.types.voidptr)
+    return numba.types.void(*arguments)
+
+
+KERNEL_SIGNATURE = _kernel_signature()
 
 
 def vector_function_space(mesh, family: str, degree: int):

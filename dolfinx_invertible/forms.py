@@ -101,11 +101,12 @@ class HyperelasticForms:
             mesh, kernels.pack_constants(self.tables, gdim, material, self.project)
         )
         space = u.function_space
-        energy, residual, tangent = kernels.KERNEL_ADDRESSES
         arguments = ([u], [self.constants], mesh)
-        self.energy = _compat.custom_form([], energy, *arguments)
-        self.residual = _compat.custom_form([space], residual, *arguments)
-        self.jacobian = _compat.custom_form([space, space], tangent, *arguments)
+        self.energy = _compat.custom_form([], kernels.kernel_address("energy"), *arguments)
+        self.residual = _compat.custom_form([space], kernels.kernel_address("residual"), *arguments)
+        self.jacobian = _compat.custom_form(
+            [space, space], kernels.kernel_address("tangent"), *arguments
+        )
 
     def set_projection(self, project: bool) -> None:
         """Switch the tangent between SPD-projected and exact, without recompiling."""

@@ -27,21 +27,13 @@ from dolfinx_invertible.pointwise import point_energy, point_stress, point_tange
 __all__ = [
     "ReferenceTables",
     "pack_constants",
-    "energy_kernel",
-    "residual_kernel",
-    "tangent_kernel",
+    "cell_energy",
+    "cell_residual",
+    "cell_tangent",
+    "compile_kernel",
+    "kernel_address",
 ]
 
-# ufcx tabulate_tensor up to DOLFINx 0.9: (A, w, c, coordinate_dofs, entity_local_index,
-# quadrature_permutation).
-KERNEL_SIGNATURE = numba.types.void(
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.float64),
-    numba.types.CPointer(numba.types.int32),
-    numba.types.CPointer(numba.types.uint8),
-)
 
 
 @dataclass(frozen=True)
@@ -147,8 +139,7 @@ PROJECT_SLOT = 7  # header entry of the projection switch
 
 
 def pack_constants(tables: ReferenceTables, dimension: int, material, project: bool) -> np.ndarray:
-    """The constants array for :func:`energy_kernel`, :func:`residual_kernel` and
-    :func:`tangent_kernel`."""
+    """The constants array the cell kernels (:func:`kernel_address`) read."""
     points, nodes, _ = tables.basis_derivatives.shape
     header = [
         dimension,
@@ -220,8 +211,8 @@ def _ids(c_):
     return int(header[4]), int(header[5]), header[6] != 0.0, header[PROJECT_SLOT] != 0.0
 
 
-@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
-def energy_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
+@numba.njit(cache=True)
+def cell_energy(A_, w_, c_, coordinates_):
     """Cell energy ∫Ψ(F) dX."""
     d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
         _unpack(c_, w_, coordinates_)
@@ -239,8 +230,8 @@ def energy_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     A_[0] += total
 
 
-@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
-def residual_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
+@numba.njit(cache=True)
+def cell_residual(A_, w_, c_, coordinates_):
     """Cell residual ∫ P : ∇φ dX."""
     d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
         _unpack(c_, w_, coordinates_)
@@ -262,8 +253,8 @@ def residual_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
                 A[a * d + i] += scale * total
 
 
-@numba.cfunc(KERNEL_SIGNATURE, nopython=True, cache=True)
-def tangent_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
+@numba.njit(cache=True)
+def cell_tangent(A_, w_, c_, coordinates_):
     """Cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
     d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
         _unpack(c_, w_, coordinates_)
@@ -298,4 +289,58 @@ def tangent_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
                         A[a * d + i, b * d + k] += total
 
 
-KERNEL_ADDRESSES = (energy_kernel.address, residual_kernel.address, tangent_kernel.address)
+
+# The C entry points DOLFINx calls. Two arities because ufcx's tabulate_tensor gained a
+# ``custom_data`` pointer in DOLFINx 0.10; _compat says which one this DOLFINx wants. They are
+# compiled on first use only (see kernel_address), so a scene that never asks for the energy,
+# say, never compiles its kernel.
+def _energy_entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
+    cell_energy(A_, w_, c_, coordinates_)
+
+
+def _residual_entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
+    cell_residual(A_, w_, c_, coordinates_)
+
+
+def _tangent_entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
+    cell_tangent(A_, w_, c_, coordinates_)
+
+
+def _energy_entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+    cell_energy(A_, w_, c_, coordinates_)
+
+
+def _residual_entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+    cell_residual(A_, w_, c_, coordinates_)
+
+
+def _tangent_entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+    cell_tangent(A_, w_, c_, coordinates_)
+
+
+_ENTRIES = {
+    "energy": (_energy_entry, _energy_entry_with_data),
+    "residual": (_residual_entry, _residual_entry_with_data),
+    "tangent": (_tangent_entry, _tangent_entry_with_data),
+}
+_COMPILED: dict[str, object] = {}
+
+
+def compile_kernel(entries: tuple) -> object:
+    """A numba ``cfunc`` with the kernel signature of the running DOLFINx.
+
+    ``entries`` holds the six-argument and the seven-argument (``custom_data``) Python function;
+    the one matching :data:`dolfinx_invertible._compat.KERNEL_TAKES_CUSTOM_DATA` is compiled
+    (or loaded from numba's disk cache).
+    """
+    from dolfinx_invertible import _compat
+
+    entry = entries[1] if _compat.KERNEL_TAKES_CUSTOM_DATA else entries[0]
+    return numba.cfunc(_compat.KERNEL_SIGNATURE, nopython=True, cache=True)(entry)
+
+
+def kernel_address(kind: str) -> int:
+    """Address of the compiled ``"energy"``, ``"residual"`` or ``"tangent"`` cell kernel."""
+    if kind not in _COMPILED:
+        _COMPILED[kind] = compile_kernel(_ENTRIES[kind])
+    return _COMPILED[kind].address
