@@ -24,7 +24,6 @@ import time
 import numpy as np
 
 
-
 def _zero_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
     """Writes nothing: what is left is DOLFINx's gathering and insertion."""
 

@@ -35,7 +35,6 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class ReferenceTables:
     """Quadrature and reference-cell basis derivatives a kernel is generated from.
@@ -287,7 +286,6 @@ def cell_tangent(A_, w_, c_, coordinates_):
                         for j in range(d):
                             total += gradients[a, j] * CB[i * d + j, b, k]
                         A[a * d + i, b * d + k] += total
-
 
 
 # The C entry points DOLFINx calls. Two arities because ufcx's tabulate_tensor gained a
