@@ -17,7 +17,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMP_NUM_THREADS := 1
 export OPENBLAS_NUM_THREADS := 1
 
-.PHONY: setup system-packages test test-serial test-mpi demo bench lint clean clean-cache
+.PHONY: setup system-packages test test-serial test-mpi test-compat demo bench lint clean clean-cache
 
 setup: system-packages $(VENV)/.installed
 
@@ -46,6 +46,12 @@ test-serial: setup
 test-mpi: setup
 	$(MPIEXEC) -n 2 $(PYTHON) -m pytest $(PYTEST_MPI)
 	$(MPIEXEC) -n 3 --oversubscribe $(PYTHON) -m pytest $(PYTEST_MPI)
+
+# The suite on every supported DOLFINx: the host's 0.5.2, Debian trixie's 0.9 and the PyPI 0.11
+# wheel (the last two in a debootstrap root under build/, made on first use); writes the README's
+# "Supported DOLFINx versions" table. Needs root (debootstrap, chroot, mounts).
+test-compat: setup
+	tools/compat/run.sh
 
 demo: setup
 	$(PYTHON) demos/constitutive.py

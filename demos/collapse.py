@@ -25,9 +25,11 @@ import pathlib
 import sys
 import time
 
+# mpi4py before dolfinx: the PyPI DOLFINx wheel loads its MPI library through mpi4py.
+from mpi4py import MPI  # isort: skip
+
 import dolfinx
 import numpy as np
-from mpi4py import MPI
 
 from dolfinx_invertible import C2, IFE, Material, NeoHookean, _compat, lame
 from dolfinx_invertible.diagnostics import cell_diagnostics, summary

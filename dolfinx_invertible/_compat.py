@@ -6,7 +6,14 @@ Written against DOLFINx 0.5.2 (Debian bookworm) first; later versions add branch
 
 from __future__ import annotations
 
-import dolfinx
+try:
+    # The PyPI wheel (dolfinx-solver-*) loads its own MPI library through mpi4py, which must
+    # happen before any DOLFINx binding loads; importing dolfinx_solver does that in order.
+    import dolfinx_solver  # noqa: F401
+except ImportError:
+    pass
+
+import dolfinx  # noqa: E402  (after the wheel's MPI)
 import dolfinx.fem
 import dolfinx.io
 import numpy as np
@@ -20,6 +27,7 @@ __all__ = [
     "petsc_vector",
     "evaluate_expression",
     "xdmf_file",
+    "XDMF_XINCLUDE_NAMESPACE",
 ]
 
 DOLFINX_VERSION = tuple(int(part) for part in dolfinx.__version__.split(".")[:2])
@@ -77,6 +85,15 @@ def evaluate_expression(expression, mesh, cells: np.ndarray) -> np.ndarray:
     return expression.eval(mesh, cells)
 
 
+# The XInclude namespace DOLFINx's XDMFFile declares (and our series rewrite must keep):
+# "http://" in 0.5, "https://" in 0.9 and later. The versions in between are not supported.
+XDMF_XINCLUDE_NAMESPACE = (
+    "http://www.w3.org/2001/XInclude"
+    if DOLFINX_VERSION < (0, 9)
+    else "https://www.w3.org/2001/XInclude"
+)
+
+
 def xdmf_file(comm, path, mode: str = "w"):
     """An XDMF file (``mode`` "w" or "r")."""
     return dolfinx.io.XDMFFile(comm, str(path), mode)
@@ -108,14 +125,57 @@ def custom_form(spaces, kernel_address: int, coefficients, constants, mesh):
             False,
             _cpp_object(mesh),
         )
-    raise NotImplementedError(
-        f"custom kernel forms are not yet bridged for DOLFINx {dolfinx.__version__}"
+    if DOLFINX_VERSION < (0, 9):
+        raise NotImplementedError(
+            f"custom kernel forms are not bridged for DOLFINx {dolfinx.__version__}"
+        )
+    tdim = mesh.topology.dim
+    # Owned cells only: ghost cells are integrated by their owner, as DOLFINx's default domain.
+    cells = np.arange(mesh.topology.index_map(tdim).size_local, dtype=np.int32)
+    # From 0.9 on an integral receives only the coefficients listed here; any other arrives as
+    # zeros, silently. Our kernels read every coefficient.
+    active = np.arange(len(coefficients), dtype=np.int8)
+    # 0.9 keys integrals by subdomain id (-1: everywhere); from 0.10 the id is the integral's
+    # position in its list.
+    integral_id = -1 if DOLFINX_VERSION < (0, 10) else 0
+    # dolfinx.fem.IntegralType: the C++ enum under its 0.11 name (_IntegralType) too.
+    integrals = {dolfinx.fem.IntegralType.cell: [(integral_id, kernel_address, cells, active)]}
+    entity_maps = {} if DOLFINX_VERSION < (0, 10) else []
+    cpp_form = cpp.fem.Form_float64(
+        [_cpp_object(space) for space in spaces],
+        integrals,
+        [_cpp_object(coefficient) for coefficient in coefficients],
+        [_cpp_object(constant) for constant in constants],
+        False,
+        entity_maps,
+        mesh=_cpp_object(mesh),
     )
+    return dolfinx.fem.Form(cpp_form)
 
 
 def coordinate_element_degree(mesh) -> int:
     """Polynomial degree of the mesh geometry map."""
-    return mesh.geometry.cmap.degree
+    geometry = mesh.geometry
+    # 0.11 deprecates ``cmap`` for ``cmaps`` (one per cell type of a mixed mesh).
+    cmap = geometry.cmaps[0] if hasattr(geometry, "cmaps") else geometry.cmap
+    return cmap.degree
+
+
+def element_family_and_degree(space) -> tuple[str, int]:
+    """UFL family name ("Lagrange", "Q", "DG", ...) and polynomial degree of a space's element."""
+    element = space.ufl_element()
+    if DOLFINX_VERSION < (0, 7):
+        return element.family(), element.degree()
+    # basix.ufl elements (0.7 on) name continuous and discontinuous Lagrange alike "P".
+    family = element.family_name
+    if family == "P":
+        family = "DG" if element.discontinuous else "Lagrange"
+    return family, int(element.degree)
+
+
+def element_degree(space) -> int:
+    """Polynomial degree of a space's element."""
+    return element_family_and_degree(space)[1]
 
 
 def basix_element(space):
@@ -131,6 +191,23 @@ def cell_dofs(space) -> np.ndarray:
     return np.asarray(dofmap.list)
 
 
+def create_vector(form):
+    """A ghosted PETSc vector laid out like the test space of a linear form."""
+    import dolfinx.fem.petsc
+
+    if DOLFINX_VERSION < (0, 11):
+        return dolfinx.fem.petsc.create_vector(form)
+    # 0.11 builds vectors from function spaces, not forms.
+    return dolfinx.fem.petsc.create_vector(form.function_spaces[0])
+
+
+def create_matrix(form):
+    """A PETSc matrix with the sparsity pattern of a bilinear form."""
+    import dolfinx.fem.petsc
+
+    return dolfinx.fem.petsc.create_matrix(form)
+
+
 def assemble_matrix_into(matrix, form, bcs, diagonal: float) -> None:
     """Add a bilinear form to ``matrix``, zeroing Dirichlet rows and columns and putting
     ``diagonal`` on the Dirichlet diagonal; ends with a flush so another form can be added.
@@ -142,7 +219,8 @@ def assemble_matrix_into(matrix, form, bcs, diagonal: float) -> None:
     import dolfinx.fem.petsc
     from petsc4py import PETSc
 
-    dolfinx.fem.petsc.assemble_matrix(matrix, form, bcs=bcs, diagonal=diagonal)
+    # Positional: the diagonal keyword is ``diagonal`` up to 0.9 and ``diag`` from 0.10 on.
+    dolfinx.fem.petsc.assemble_matrix(matrix, form, bcs, diagonal)
     matrix.assemble(PETSc.Mat.AssemblyType.FLUSH)
 
 

@@ -99,11 +99,11 @@ def cell_diagnostics(
             f"u must be a displacement with {dimension} components, got value shape {u.ufl_shape}"
         )
     if quadrature_degree is None:
-        quadrature_degree = default_quadrature_degree(u.function_space.ufl_element().degree())
+        quadrature_degree = default_quadrature_degree(_compat.element_degree(u.function_space))
     elif int(quadrature_degree) != quadrature_degree or quadrature_degree < 0:
         raise ValueError(f"quadrature_degree must be an integer >= 0, got {quadrature_degree!r}")
 
-    cell_type = basix.cell.string_to_type(mesh.topology.cell_type.name)
+    cell_type = _compat.basix_element(u.function_space).cell_type
     points, weights = basix.make_quadrature(cell_type, int(quadrature_degree))
     # Built on every rank, even one without cells: the JIT compilation is collective.
     expression = dolfinx.fem.Expression(ufl.Identity(dimension) + ufl.grad(u), points)

@@ -22,6 +22,7 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
+from dolfinx_invertible import _compat
 from dolfinx_invertible.material import Material
 from dolfinx_invertible.problem import HyperelasticProblem
 from dolfinx_invertible.solver import SolverError, SolveResult
@@ -85,7 +86,7 @@ class ImplicitDynamics:
         space = u.function_space
         mesh = space.mesh
         d = mesh.geometry.dim
-        if lumped_mass and space.ufl_element().degree() != 1:
+        if lumped_mass and _compat.element_degree(space) != 1:
             raise ValueError("lumped_mass is only available for P1 displacements (vertex rule)")
         self.u = u
         self.previous = dolfinx.fem.Function(space)

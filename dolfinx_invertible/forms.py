@@ -22,12 +22,10 @@ def default_quadrature_degree(degree: int) -> int:
 def _check_space(u) -> tuple[str, int, int]:
     space = u.function_space
     mesh = space.mesh
-    element = space.ufl_element()
-    cell = mesh.ufl_cell().cellname()
+    cell = mesh.topology.cell_type.name
     tdim = mesh.topology.dim
     gdim = mesh.geometry.dim
-    family = element.family()
-    degree = element.degree()
+    family, degree = _compat.element_family_and_degree(space)
     supported = (
         f"supported: vector Lagrange of degree {_SUPPORTED_DEGREES} on {_SUPPORTED_CELLS}, "
         "one component per space dimension, affine (degree-1) geometry"

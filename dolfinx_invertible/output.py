@@ -53,7 +53,7 @@ DISPLACEMENT_NAME = "displacement"
 #: Name of the temporal collection grid that holds the steps.
 SERIES_NAME = "time_series"
 
-_XINCLUDE_NAMESPACE = "http://www.w3.org/2001/XInclude"
+_XINCLUDE_NAMESPACE = _compat.XDMF_XINCLUDE_NAMESPACE
 _XINCLUDE = f"{{{_XINCLUDE_NAMESPACE}}}include"
 _XML_HEADER = '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
 # Names end up in XPath queries and HDF5 paths (/Function/<name>/<time>): no quotes or slashes.

@@ -217,7 +217,7 @@ class EnergyProblem:
 
     def create_vector(self) -> PETSc.Vec:
         """A ghosted vector laid out like the dofs of ``u``."""
-        return dolfinx.fem.petsc.create_vector(self.residual_forms[0])
+        return _compat.create_vector(self.residual_forms[0])
 
     def create_matrix(self) -> PETSc.Mat:
         """A matrix with the sparsity pattern of the first jacobian form.
@@ -227,7 +227,7 @@ class EnergyProblem:
         of neighbouring cells, which a cell-only pattern lacks; PETSc is allowed to allocate such
         entries rather than fail, and :meth:`J` warns once if it had to.
         """
-        matrix = dolfinx.fem.petsc.create_matrix(self.jacobian_forms[0])
+        matrix = _compat.create_matrix(self.jacobian_forms[0])
         if len(self.jacobian_forms) > 1:
             matrix.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         return matrix

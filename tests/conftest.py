@@ -5,7 +5,10 @@ The `serial` marker itself is registered in pyproject.toml.
 
 import numpy as np
 import pytest
-from helpers import matrices_with_sigma, random_rotation
+
+# Before any test module imports dolfinx: _compat readies the platform (on the PyPI DOLFINx wheel,
+# its MPI library must be loaded first). Hence also no import of helpers (and dolfinx) up here.
+import dolfinx_invertible._compat  # noqa: F401
 
 
 def _comm_size():
@@ -33,10 +36,14 @@ def rng(request):
 @pytest.fixture
 def rotation():
     """random_rotation(rng, d): Haar-random rotation with det +1."""
+    from helpers import random_rotation
+
     return random_rotation
 
 
 @pytest.fixture
 def with_sigma():
     """with_sigma(rng, sigma): random F = R1 diag(sigma) R2^T for each row of signed sigma."""
+    from helpers import matrices_with_sigma
+
     return matrices_with_sigma

@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Build (once) the Debian trixie root that hosts the DOLFINx 0.9 and 0.11 test lanes.
+#
+# Usage: tools/compat/build-root.sh ROOT
+#
+# Each stage leaves a stamp file in ROOT/.compat-stages once it has completed; a stage without its
+# stamp is redone from scratch (debootstrap, venv) or resumed (apt, which is idempotent), so an
+# interrupted build is never silently reused.
+set -euo pipefail
+
+root=$(realpath -m "${1:?usage: build-root.sh ROOT}")
+here=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=tools/compat/chroot.sh
+source "$here/chroot.sh"
+
+suite=trixie
+mirror=${COMPAT_MIRROR:-http://deb.debian.org/debian}
+stages=$root/.compat-stages
+# Debian trixie's own DOLFINx 0.9 lane, plus what the tests and demos import.
+apt_packages=(
+  python3-dolfinx-real python3-numba python3-pytest python3-meshio python3-h5py python3-scipy
+  python3-matplotlib python3-tqdm openmpi-bin python3-venv python3-pip ca-certificates
+)
+# The PyPI lane: DOLFINx 0.11 wheel with its own MPICH, and the same test dependencies from PyPI.
+# h5py < 3.16: its wheels from 3.16 on bundle HDF5 2.0, while the DOLFINx wheel loads HDF5 1.14
+# (through PETSc) into the same process, and h5py then fails with "Not a datatype".
+pip_packages=(dolfinx-solver-real numba pytest meshio "h5py<3.16" scipy matplotlib tqdm)
+venv=/opt/dolfinx-wheel
+
+stage_done() { [ -e "$stages/$1" ]; }
+mark_done() { mkdir -p "$stages" && touch "$stages/$1"; }
+
+ensure_debootstrap() {
+  if ! dpkg-query -W -f='${Status}' debootstrap 2>/dev/null | grep -q "install ok installed"; then
+    echo "installing Debian package: debootstrap"
+    local sudo=""
+    [ "$(id -u)" = 0 ] || sudo=sudo
+    $sudo apt-get update -q
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends debootstrap
+  fi
+}
+
+if ! stage_done debootstrap; then
+  ensure_debootstrap
+  # A half-made root cannot be resumed by debootstrap; start over, but never through live mounts.
+  compat_unmount_all "$root"
+  rm -rf --one-file-system "$root"
+  mkdir -p "$(dirname "$root")"
+  echo "debootstrap $suite into $root (a few minutes)"
+  debootstrap --variant=minbase "$suite" "$root" "$mirror"
+  mark_done debootstrap
+fi
+
+# Always refresh: the host's resolver and CA certificates can change between runs.
+cp /etc/resolv.conf "$root/etc/resolv.conf"
+mkdir -p "$root/usr/local/share/compat-host-ca"
+cp /etc/ssl/certs/ca-certificates.crt "$root/usr/local/share/compat-host-ca/ca-certificates.crt"
+
+compat_mount "$root"
+trap 'compat_unmount_all "$root"' EXIT
+
+if ! stage_done apt; then
+  echo "installing trixie packages: ${apt_packages[*]}"
+  compat_chroot "$root" env DEBIAN_FRONTEND=noninteractive bash -euo pipefail -c '
+    printf "Acquire::Retries \"5\";\n" > /etc/apt/apt.conf.d/80-retries
+    apt-get update -q
+    apt-get install -y -q --no-install-recommends "$@"
+    apt-get clean
+  ' apt "${apt_packages[@]}"
+  mark_done apt
+fi
+
+if ! stage_done venv; then
+  echo "creating the DOLFINx wheel venv: ${pip_packages[*]}"
+  compat_chroot "$root" bash -euo pipefail -c '
+    rm -rf "$1"
+    python3 -m venv "$1"
+    shift
+    PIP_CERT=/usr/local/share/compat-host-ca/ca-certificates.crt \
+      "$0"/bin/pip install -q --retries 5 --no-cache-dir "$@"
+  ' "$venv" "$venv" "${pip_packages[@]}"
+  mark_done venv
+fi
