@@ -273,10 +273,12 @@ def locate_points(mesh, points: np.ndarray) -> np.ndarray:
 
 def geometry_dofmap(mesh) -> np.ndarray:
     """Geometry nodes of every local cell (owned and ghost) as a (cells, nodes) array."""
-    dofmap = mesh.geometry.dofmap
-    if isinstance(dofmap, np.ndarray):
-        return dofmap
-    return dofmap.array.reshape(dofmap.num_nodes, -1)
+    geometry = mesh.geometry
+    if DOLFINX_VERSION < (0, 7):
+        dofmap = geometry.dofmap  # an AdjacencyList
+        return dofmap.array.reshape(dofmap.num_nodes, -1)
+    # 0.11 deprecates ``dofmap`` for ``dofmaps`` (one per cell type of a mixed mesh).
+    return geometry.dofmaps[0] if hasattr(geometry, "dofmaps") else geometry.dofmap
 
 
 def boundary_condition_dof_count(bc) -> int:

@@ -44,11 +44,23 @@ if ! stage_done debootstrap; then
   ensure_debootstrap
   # A half-made root cannot be resumed by debootstrap; start over, but never through live mounts.
   compat_unmount_all "$root"
-  rm -rf --one-file-system "$root"
-  mkdir -p "$(dirname "$root")"
-  echo "debootstrap $suite into $root (a few minutes)"
-  debootstrap --variant=minbase "$suite" "$root" "$mirror"
-  mark_done debootstrap
+  # The repository bind mount lives on the same filesystem, so --one-file-system alone would not
+  # keep rm out of it: refuse outright while anything is mounted below the root.
+  if findmnt -rn -o TARGET | grep -q "^$root/"; then
+    echo "error: something is still mounted under $root; not deleting it" >&2
+    exit 1
+  fi
+  for attempt in 1 2 3; do
+    rm -rf --one-file-system "$root"
+    mkdir -p "$(dirname "$root")"
+    echo "debootstrap $suite into $root (a few minutes; attempt $attempt)"
+    if debootstrap --variant=minbase "$suite" "$root" "$mirror"; then
+      mark_done debootstrap
+      break
+    fi
+    [ "$attempt" = 3 ] && exit 1
+    sleep 10
+  done
 fi
 
 # Always refresh: the host's resolver and CA certificates can change between runs.
@@ -58,6 +70,9 @@ cp /etc/ssl/certs/ca-certificates.crt "$root/usr/local/share/compat-host-ca/ca-c
 
 compat_mount "$root"
 trap 'compat_unmount_all "$root"' EXIT
+# A signal ends the script through exit, so the EXIT trap unmounts in every case.
+trap 'exit 130' INT
+trap 'exit 143' TERM
 
 if ! stage_done apt; then
   echo "installing trixie packages: ${apt_packages[*]}"

@@ -26,6 +26,9 @@ source "$here/chroot.sh"
 
 compat_mount "$root" "$repo"
 trap 'compat_unmount_all "$root"' EXIT
+# A signal ends the script through exit, so the EXIT trap unmounts in every case.
+trap 'exit 130' INT
+trap 'exit 143' TERM
 
 rm -rf "$results"
 mkdir -p "$results"
@@ -100,7 +103,7 @@ print(json.dumps({"dolfinx": dolfinx.__version__, "python": platform.python_vers
 wheel_venv=/opt/dolfinx-wheel
 failed=0
 for lane in $lanes; do
-  describe "$lane" > "$results/$lane.versions.json"
+  describe "$lane" > "$results/$lane.versions.json" || echo "{}" > "$results/$lane.versions.json"
   for mode in serial mpi; do
     echo "=== $lane ($(cat "$results/$lane.versions.json")): $mode"
     start=$(date +%s)
