@@ -57,8 +57,17 @@ demo: setup
 	$(PYTHON) demos/constitutive.py
 	$(MPIEXEC) -n 2 $(PYTHON) demos/collapse.py
 
+# Quick sizes of every benchmark, JSON in output/bench/ (full sizes: README, Performance).
+BENCH_JSON := output/bench
+
 bench: setup
 	$(PYTHON) -m dolfinx_invertible bench material
+	mkdir -p $(BENCH_JSON)
+	$(PYTHON) -m dolfinx_invertible bench assembly --json $(BENCH_JSON)/assembly.json
+	$(PYTHON) -m dolfinx_invertible bench solve --json $(BENCH_JSON)/solve.json
+	$(PYTHON) -m dolfinx_invertible bench scaling --json $(BENCH_JSON)/scaling.json
+	$(PYTHON) -m dolfinx_invertible bench memory --json $(BENCH_JSON)/memory.json
+	$(PYTHON) -m dolfinx_invertible bench compile --race-repeats 1 --json $(BENCH_JSON)/compile.json
 
 lint: setup
 	$(PYTHON) -m pip install -q ruff

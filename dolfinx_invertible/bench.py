@@ -1,9 +1,13 @@
-"""Benchmarks of the compiled kernels against plain NumPy.
+"""Benchmarks: the material kernels against NumPy, and the DOLFINx benchmarks' entry point.
 
 Usage::
 
     python -m dolfinx_invertible.bench material [--points N] [--repeats R] [--seed S]
-    python -m dolfinx_invertible bench material ...
+    python -m dolfinx_invertible bench {material,assembly,solve,scaling,compile,memory} --help
+
+``assembly``, ``solve``, ``scaling``, ``compile`` and ``memory`` live in their own modules
+(``bench_assembly.py`` …, shared pieces in ``bench_common.py``); each prints a table and writes
+JSON (``--json PATH``, otherwise to stdout).
 
 ``material`` times energy, stress and projected tangent of Neo-Hookean with the C2 extension on
 random 3D deformation gradients, numba (:class:`dolfinx_invertible.Material`) against the
@@ -271,7 +275,11 @@ def _material_command(arguments: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
-    print(json.dumps(report, indent=2))
+    if arguments.json:
+        with open(arguments.json, "w", encoding="utf-8") as file:
+            file.write(json.dumps(report, indent=2) + "\n")
+    else:
+        print(json.dumps(report, indent=2))
     _print_material_table(report)
     return 0
 
@@ -280,19 +288,24 @@ def _add_material_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--points", type=int, default=1_000_000, help="number of F (default 1e6)")
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--json", help="write the JSON report here (default: stdout)")
 
 
-def _assembly_arguments(parser: argparse.ArgumentParser) -> None:
-    from dolfinx_invertible import bench_assembly
+def _module_subcommand(module_name: str):
+    """Argument setup and command of a benchmark module, imported on first use.
 
-    bench_assembly.add_arguments(parser)
+    The modules import DOLFINx only inside their functions, which the material benchmark does
+    not need; importing them to build the parser is cheap.
+    """
+    import importlib
 
+    def module():
+        return importlib.import_module(f"dolfinx_invertible.{module_name}")
 
-def _assembly_command(arguments: argparse.Namespace) -> int:
-    # Imported here: it needs DOLFINx, which the material benchmark does not.
-    from dolfinx_invertible import bench_assembly
-
-    return bench_assembly.command(arguments)
+    return (
+        lambda parser: module().add_arguments(parser),
+        lambda arguments: module().command(arguments),
+    )
 
 
 # name -> (help, argument setup, command)
@@ -303,9 +316,25 @@ SUBCOMMANDS = {
         _material_command,
     ),
     "assembly": (
-        "residual and tangent assembly: our kernels vs FFCx's UFL Neo-Hookean and a zero kernel",
-        _assembly_arguments,
-        _assembly_command,
+        "residual, tangent and Newton step: our kernels vs FFCx's UFL Neo-Hookean and a zero "
+        "kernel",
+        *_module_subcommand("bench_assembly"),
+    ),
+    "solve": (
+        "time to solution on Cook's membrane: UFL Neo-Hookean vs our kernels, same solver",
+        *_module_subcommand("bench_solve"),
+    ),
+    "scaling": (
+        "MPI speed-up of assembly and a Newton step, mpirun -n 1 vs -n 2",
+        *_module_subcommand("bench_scaling"),
+    ),
+    "compile": (
+        "cold and warm kernel compilation, and concurrent ranks on an empty numba cache",
+        *_module_subcommand("bench_compile"),
+    ),
+    "memory": (
+        "peak resident memory of building and one Newton step of a large P1 problem",
+        *_module_subcommand("bench_memory"),
     ),
 }
 
@@ -333,7 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     arguments = _parser().parse_args(argv)
-    if getattr(arguments, "points", 1) < 1 or arguments.repeats < 1:
+    if getattr(arguments, "points", 1) < 1 or getattr(arguments, "repeats", 1) < 1:
         print("--points and --repeats must be at least 1", file=sys.stderr)
         return 2
     if not _PINNED_BEFORE_IMPORT:

@@ -1,7 +1,8 @@
 """Assembly benchmark: our kernels against FFCx's UFL Neo-Hookean and a zero kernel.
 
-``python -m dolfinx_invertible bench assembly [--cells 20] [--repeats 7]`` times, on one mesh in
-one process with interleaved repeats (medians reported):
+``python -m dolfinx_invertible bench assembly [--cells 20] [--repeats 7] [--json PATH]`` times,
+on one mesh in one process with interleaved repeats (medians reported), the cases of
+:mod:`dolfinx_invertible.bench_common`:
 
 (a) UFL Neo-Hookean compiled by FFCx;
 (b) our Neo-Hookean + C2 at a state where no point is near the threshold (J ≈ 1.03);
@@ -9,85 +10,27 @@ one process with interleaved repeats (medians reported):
     point goes through the SVD and the C2 Taylor expansion;
 (d) a kernel that writes nothing (DOLFINx's insertion floor).
 
-for residual and tangent assembly, on P1 tetrahedra (cells³ × 6) and on P2 tetrahedra with about
-the same number of dofs, and prints JSON plus the ratios b/a, c/a, c/d.
+Three operations: residual assembly, tangent assembly, and one Newton step, i.e. residual and
+tangent assembly with the Dirichlet condition on x = 0 applied plus the conjugate-gradient/GAMG
+solve to the solver's default tolerance, with the KSP of
+:class:`~dolfinx_invertible.solver.NewtonSolver` (:meth:`NewtonSolver.newton_direction`: same
+options, rigid-body near-nullspace). Case (d) has no Newton step: its tangent is the zero matrix,
+whose "solve" means nothing, so (d) is reported for assembly only and c/d is undefined for the
+Newton step. Our tangent is the SPD-projected one (the kernels' default).
+
+Meshes: P1 tetrahedra (cells³ × 6) and P2 tetrahedra with about the same number of dofs
+((cells/2)³ × 6). Ratios b/a, c/a, c/d.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
-import json
+import os
 import statistics
-import time
 
-import numpy as np
+from dolfinx_invertible import bench_common
 
-
-def _zero_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
-    """Writes nothing: what is left is DOLFINx's gathering and insertion."""
-
-
-def _zero_kernel_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-    """As :func:`_zero_kernel`, for DOLFINx's kernel signature with ``custom_data``."""
-
-
-def _cases(cells: int, degree: int):
-    import dolfinx
-    import dolfinx.fem.petsc
-    import ufl
-    from mpi4py import MPI
-
-    from dolfinx_invertible import C2, HyperelasticForms, Material, NeoHookean, _compat, lame
-    from dolfinx_invertible.kernels import compile_kernel
-
-    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, cells, cells, cells)
-    V = _compat.vector_function_space(mesh, "Lagrange", degree)
-    mu, lam = lame(1.0e3, 0.3)
-    quadrature_degree = max(1, 2 * (degree - 1))
-
-    def state(stretch):
-        u = dolfinx.fem.Function(V)
-        u.interpolate(lambda x: (stretch - 1.0) * x + 0.01 * np.sin(3.0 * x[::-1]))
-        u.x.scatter_forward()
-        return u
-
-    material = Material(NeoHookean(mu=mu, lam=lam), C2(0.9))
-    forms = {}
-    u_fast = state(1.01)
-    F = ufl.Identity(3) + ufl.grad(u_fast)
-    J = ufl.det(F)
-    psi = mu / 2 * (ufl.tr(F.T * F) - 3) - mu * ufl.ln(J) + lam / 2 * ufl.ln(J) ** 2
-    energy = psi * ufl.dx(metadata={"quadrature_degree": quadrature_degree})
-    residual = ufl.derivative(energy, u_fast)
-    forms["a_ufl"] = (
-        dolfinx.fem.form(residual),
-        dolfinx.fem.form(ufl.derivative(residual, u_fast)),
-    )
-    fast = HyperelasticForms(u_fast, material, quadrature_degree)
-    forms["b_fast"] = (fast.residual, fast.jacobian)
-    u_svd = state(0.95)
-    svd = HyperelasticForms(u_svd, material, quadrature_degree)
-    forms["c_svd"] = (svd.residual, svd.jacobian)
-    zero_kernel = compile_kernel((_zero_kernel, _zero_kernel_with_data))
-    zero = [
-        _compat.custom_form(spaces, zero_kernel.address, [u_fast], [fast.constants], mesh)
-        for spaces in ([V], [V, V])
-    ]
-    forms["d_zero"] = tuple(zero)
-    regions = {
-        name: int(np.count_nonzero(material.regions(np.eye(3) * stretch)))
-        for name, stretch in (("b_fast", 1.01), ("c_svd", 0.95))
-    }
-    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-    cells_total = mesh.topology.index_map(3).size_global
-    return forms, dofs, cells_total, regions, (svd, fast)
-
-
-def _time(function) -> float:
-    start = time.perf_counter()
-    function()
-    return time.perf_counter() - start
+OPERATIONS = ("residual", "tangent", "newton_step")
 
 
 def _assemble_residual(vector, form) -> None:
@@ -106,71 +49,174 @@ def _assemble_tangent(matrix, form) -> None:
     matrix.assemble()
 
 
-def _interleaved_samples(forms: dict, repeats: int) -> dict:
-    """Seconds per repeat for each case; cases interleaved so machine noise hits all alike."""
+def newton_solver(case: bench_common.Case):
+    """A :class:`~dolfinx_invertible.solver.NewtonSolver` with default options for a case."""
+    from dolfinx_invertible.solver import EnergyProblem, NewtonSolver
+
+    problem = EnergyProblem(case.u, case.energy, case.residual, case.jacobian, case.bcs)
+    return NewtonSolver(problem)
+
+
+def case_jobs(case: bench_common.Case, newton_step: bool = True) -> tuple[dict, dict]:
+    """Timed callables of a case (residual, tangent, Newton step) and their Krylov counts.
+
+    Each job has been run once, so compilation, sparsity and first-use costs are paid.
+    """
+    import functools
+
     import dolfinx.fem.petsc
 
-    jobs = {}
-    for name, (residual, jacobian) in forms.items():
-        vector = dolfinx.fem.petsc.create_vector(residual)
-        matrix = dolfinx.fem.petsc.create_matrix(jacobian)
-        jobs[name] = {
-            "residual": functools.partial(_assemble_residual, vector, residual),
-            "tangent": functools.partial(_assemble_tangent, matrix, jacobian),
-        }
-        for job in jobs[name].values():  # warm-up: JIT, caches, sparsity
-            job()
-    samples = {name: {kind: [] for kind in kinds} for name, kinds in jobs.items()}
-    for _ in range(repeats):
-        for name, kinds in jobs.items():
-            for kind, job in kinds.items():
-                samples[name][kind].append(_time(job))
-    return samples
+    vector = dolfinx.fem.petsc.create_vector(case.residual[0])
+    matrix = dolfinx.fem.petsc.create_matrix(case.jacobian[0])
+    jobs = {
+        "residual": functools.partial(_assemble_residual, vector, case.residual[0]),
+        "tangent": functools.partial(_assemble_tangent, matrix, case.jacobian[0]),
+    }
+    krylov: dict = {"iterations": [], "converged": True}
+    if newton_step:
+        solver = newton_solver(case)
+        direction = solver.problem.create_vector()
+
+        def step() -> None:
+            krylov["iterations"].append(solver.newton_direction(direction))
+            krylov["converged"] &= int(solver.snes.getKSP().getConvergedReason()) > 0
+
+        jobs["newton_step"] = step
+    for job in jobs.values():
+        job()
+    return jobs, krylov
 
 
-def run(cells: int, repeats: int) -> dict:
-    report = {"benchmark": "assembly", "repeats": repeats, "meshes": {}}
-    for degree, mesh_cells in ((1, cells), (2, max(1, cells // 2))):
-        forms, dofs, cells_total, regions, keep_alive = _cases(mesh_cells, degree)
-        samples = _interleaved_samples(forms, repeats)
-        medians = {
-            name: {kind: statistics.median(values) for kind, values in kinds.items()}
-            for name, kinds in samples.items()
+def _ratio(numerator: float | None, denominator: float | None) -> float | None:
+    if numerator is None or denominator is None:
+        return None
+    return numerator / denominator
+
+
+def run_mesh(comm, cells: int, degree: int, repeats: int, newton_step: bool = True) -> dict:
+    """All cases on one mesh; JSON-ready medians, ratios and Krylov iteration counts."""
+    space = bench_common.unit_cube_space(comm, cells, degree)
+    cases = {name: bench_common.build_case(name, space) for name in bench_common.CASES}
+    jobs, krylov = {}, {}
+    for name, case in cases.items():
+        jobs[name], krylov[name] = case_jobs(case, newton_step and name != "d_zero")
+    flat = {
+        (name, operation): job for name, kinds in jobs.items() for operation, job in kinds.items()
+    }
+    samples = bench_common.interleaved(flat, repeats, comm)
+    median = {name: {operation: None for operation in OPERATIONS} for name in bench_common.CASES}
+    for (name, operation), values in samples.items():
+        median[name][operation] = statistics.median(values)
+    ratios = {
+        operation: {
+            "b/a": _ratio(median["b_fast"][operation], median["a_ufl"][operation]),
+            "c/a": _ratio(median["c_svd"][operation], median["a_ufl"][operation]),
+            "c/d": _ratio(median["c_svd"][operation], median["d_zero"][operation]),
         }
-        ratios = {}
-        for kind in ("residual", "tangent"):
-            ratios[kind] = {
-                "b/a": medians["b_fast"][kind] / medians["a_ufl"][kind],
-                "c/a": medians["c_svd"][kind] / medians["a_ufl"][kind],
-                "c/d": medians["c_svd"][kind] / medians["d_zero"][kind],
+        for operation in OPERATIONS
+        if median["a_ufl"][operation] is not None
+    }
+    index_map = space.dofmap.index_map
+    return {
+        "cells": space.mesh.topology.index_map(3).size_global,
+        "dofs": index_map.size_global * space.dofmap.index_map_bs,
+        "quadrature_degree": max(1, 2 * (degree - 1)),
+        "extension_share": {name: bench_common.extension_share(name) for name in cases},
+        "median_seconds": median,
+        "ratios": ratios,
+        "krylov_iterations": {
+            name: {
+                "per_step": value["iterations"],
+                "converged": value["converged"],
             }
-        report["meshes"][f"P{degree}"] = {
-            "cells": cells_total,
-            "dofs": dofs,
-            "quadrature_degree": max(1, 2 * (degree - 1)),
-            "extension_active_in": regions,
-            "median_seconds": medians,
-            "ratios": ratios,
-        }
-        del keep_alive
+            for name, value in krylov.items()
+            if value["iterations"]
+        },
+    }
+
+
+def run(cells: int, repeats: int, newton_step: bool = True) -> dict:
+    """The assembly benchmark on the P1 and the P2 mesh; a JSON-ready report.
+
+    Parameters
+    ----------
+    cells
+        P1 cells per edge of the unit cube (the P2 mesh has half as many).
+    repeats
+        Timed repeats of every operation (interleaved).
+    newton_step
+        Also time one Newton step per case (not for the zero kernel).
+    """
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    report = {
+        "benchmark": "assembly",
+        "repeats": repeats,
+        "ranks": comm.size,
+        "tangent": "SPD-projected (ours), exact (UFL)",
+        "notes": "d_zero has no Newton step: its tangent is the zero matrix",
+        "machine": bench_common.machine(),
+        "meshes": {},
+    }
+    for degree, mesh_cells in ((1, cells), (2, max(1, cells // 2))):
+        report["meshes"][f"P{degree}"] = run_mesh(comm, mesh_cells, degree, repeats, newton_step)
+    report["machine"]["load_average_after"] = list(os.getloadavg())
     return report
 
 
+def table(report: dict) -> str:
+    """The report as a human-readable table."""
+    short = {"a_ufl": "a", "b_fast": "b", "c_svd": "c", "d_zero": "d"}
+    load = report["machine"]["load_average"]
+    lines = [
+        f"assembly benchmark: {report['ranks']} rank(s), medians of {report['repeats']} "
+        f"interleaved repeats, load average {load[0]:.2f} before, "
+        f"{report['machine']['load_average_after'][0]:.2f} after",
+        "a UFL/FFCx, b ours fast path, c ours SVD + C2 path, d zero kernel; "
+        "Newton step = assembly with BCs + CG/GAMG solve (none for d)",
+    ]
+    header = f"{'mesh':<5}{'operation':<12}" + "".join(f"{short[n] + ' [s]':>10}" for n in short)
+    header += f"{'b/a':>7}{'c/a':>7}{'c/d':>7}{'KSP its a/b/c':>16}"
+    lines.append(header)
+    for mesh_name, mesh in report["meshes"].items():
+        lines.append(f"{mesh_name}: {mesh['cells']} cells, {mesh['dofs']} dofs")
+        for operation, ratios in mesh["ratios"].items():
+            times = "".join(
+                f"{'—':>10}" if value is None else f"{value:>10.4f}"
+                for value in (mesh["median_seconds"][name][operation] for name in short)
+            )
+            its = ""
+            if operation == "newton_step":
+                its = "/".join(
+                    str(mesh["krylov_iterations"][name]["per_step"][-1])
+                    for name in ("a_ufl", "b_fast", "c_svd")
+                )
+            lines.append(
+                f"{'':<5}{operation:<12}{times}"
+                + "".join(
+                    f"{bench_common.ratio_text(ratios[key]):>7}" for key in ("b/a", "c/a", "c/d")
+                )
+                + f"{its:>16}"
+            )
+    return "\n".join(lines)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Command-line options of ``bench assembly``."""
     parser.add_argument("--cells", type=int, default=20, help="P1 cells per edge (default 20)")
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats (default 7)")
+    parser.add_argument(
+        "--no-newton", action="store_true", help="assembly only, skip the Newton step"
+    )
+    parser.add_argument("--json", help="write the JSON report here (default: stdout)")
 
 
 def command(arguments: argparse.Namespace) -> int:
-    report = run(arguments.cells, arguments.repeats)
-    print(json.dumps(report, indent=2))
-    for name, mesh in report["meshes"].items():
-        print(f"{name}: {mesh['cells']} cells, {mesh['dofs']} dofs", flush=True)
-        for kind, ratios in mesh["ratios"].items():
-            seconds = ", ".join(
-                f"{case} {mesh['median_seconds'][case][kind]:.4f} s"
-                for case in mesh["median_seconds"]
-            )
-            shown = ", ".join(f"{key} = {value:.2f}" for key, value in ratios.items())
-            print(f"  {kind:8s} {seconds}; {shown}")
+    """Run ``bench assembly``; returns the exit code."""
+    from mpi4py import MPI
+
+    report = run(arguments.cells, arguments.repeats, not arguments.no_newton)
+    if MPI.COMM_WORLD.rank == 0:
+        bench_common.emit(report, table(report), arguments.json)
     return 0

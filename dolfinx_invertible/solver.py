@@ -490,6 +490,40 @@ class NewtonSolver:
     def _options_in_effect(self) -> contextlib.AbstractContextManager[None]:
         return _options_in_database(self.options_prefix, self._options)
 
+    def newton_direction(self, direction: PETSc.Vec) -> int:
+        """The Newton direction at the current ``u``, computed as an iteration of :meth:`solve`.
+
+        Imposes the Dirichlet values, assembles residual and tangent and solves with the KSP that
+        SNES uses (same options, preconditioner and near-nullspace); no line search, and ``u``
+        keeps its value. Meant for benchmarks and diagnostics.
+
+        Parameters
+        ----------
+        direction
+            Receives the solution δ of tangent · δ = residual (a vector of
+            :meth:`EnergyProblem.create_vector`'s layout).
+
+        Returns
+        -------
+        int
+            Krylov iterations; ``self.snes.getKSP().getConvergedReason()`` tells whether it
+            converged.
+        """
+        u_vector = _compat.petsc_vector(self.problem.u)
+        u_vector.copy(self._backup)
+        u_vector.copy(self._x)
+        _compat.set_dirichlet_values(self._x, self.problem.bcs)
+        try:
+            self.problem.F(self.snes, self._x, self._residual)
+            self.problem.J(self.snes, self._x, self._matrix, self._matrix)
+            ksp = self.snes.getKSP()
+            with self._options_in_effect():
+                ksp.setOperators(self._matrix, self._matrix)
+                ksp.solve(self._residual, direction)
+        finally:
+            self._restore(u_vector)
+        return int(ksp.getIterationNumber())
+
     def solve(self) -> SolveResult:
         """Solve from the current ``u`` with the current loads and boundary values.
 
