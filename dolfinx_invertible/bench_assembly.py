@@ -64,10 +64,10 @@ def case_jobs(case: bench_common.Case, newton_step: bool = True) -> tuple[dict, 
     """
     import functools
 
-    import dolfinx.fem.petsc
+    from dolfinx_invertible import _compat
 
-    vector = dolfinx.fem.petsc.create_vector(case.residual[0])
-    matrix = dolfinx.fem.petsc.create_matrix(case.jacobian[0])
+    vector = _compat.create_vector(case.residual[0])
+    matrix = _compat.create_matrix(case.jacobian[0])
     jobs = {
         "residual": functools.partial(_assemble_residual, vector, case.residual[0]),
         "tangent": functools.partial(_assemble_tangent, matrix, case.jacobian[0]),

@@ -55,15 +55,17 @@ run_pytest() {
         "${pytest_flags[@]}")
       ;;
     trixie | wheel)
-      local python=/usr/bin/python3
+      local python=/usr/bin/python3 lane_env=()
       if [ "$lane" = wheel ]; then
         python=$wheel_venv/bin/python
-        # The wheel brings its own MPICH: its mpiexec, not trixie's OpenMPI.
+        # The venv as if activated: the wheel brings its own MPICH, so its mpiexec/mpirun (also
+        # for tests that start MPI children), not trixie's OpenMPI.
+        lane_env=(VIRTUAL_ENV="$wheel_venv" PATH="$wheel_venv/bin:/usr/sbin:/usr/bin:/sbin:/bin")
         [ "$mode" = mpi ] && launcher=("$wheel_venv/bin/mpiexec" -n 2)
       else
         [ "$mode" = mpi ] && launcher=(mpirun -n 2)
       fi
-      COMPAT_CWD=/repo compat_chroot "$root" "${common_env[@]}" \
+      COMPAT_CWD=/repo compat_chroot "$root" "${common_env[@]}" "${lane_env[@]}" \
         COMPAT_COUNTS="/repo/${counts#"$repo/"}" NUMBA_CACHE_DIR="$(numba_cache "$lane")" \
         PYTHONPATH=/repo:/repo/tools/compat \
         timeout "$run_timeout" "${launcher[@]}" "$python" -m pytest "${pytest_flags[@]}"
