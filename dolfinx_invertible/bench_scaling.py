@@ -88,10 +88,14 @@ def run(
             arguments = ["--worker", "--cells", str(cells), "--repeats", str(repeats)]
             arguments += ["--cases", *cases, "--json", path]
             command = bench_common.bench_command("scaling", arguments, count)
+            load_before = list(os.getloadavg())
             wall = bench_common.run_child(command, bench_common.child_environment(), timeout)
             with open(path, encoding="utf-8") as file:
                 run_report = json.load(file)
             run_report["process_wall_seconds"] = wall
+            # Other processes on the machine take cores from the multi-rank runs: keep the record.
+            run_report["load_average_before"] = load_before
+            run_report["load_average_after"] = list(os.getloadavg())
             report["runs"][str(count)] = run_report
     first = report["runs"][str(ranks[0])]
     report["dofs"] = first["dofs"]
