@@ -52,7 +52,10 @@ with ResultWriter("output/cantilever.xdmf", mesh) as writer:  # + output/cantile
         diagnostics = cell_diagnostics(u, material)
         record = summary(diagnostics, mesh.comm)
         record.update(
-            energy=result.energy, newton=result.newton_iterations, ksp=result.linear_iterations
+            energy=result.energy,
+            newton=result.newton_iterations,
+            ksp=result.linear_iterations,
+            svd_share=result.svd_share,  # share of points that needed the SVD, per kernel
         )
         writer.write(t, u, diagnostics, record)
 

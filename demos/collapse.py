@@ -83,6 +83,7 @@ def run(scene, extension, arguments, comm) -> dict:
                     energy=result.energy,
                     newton_iterations=result.newton_iterations,
                     linear_iterations=result.linear_iterations,
+                    svd_share=result.svd_share,
                 )
             record["kinetic_energy"] = dynamics.kinetic_energy
             record["wall_time"] = time.perf_counter() - started

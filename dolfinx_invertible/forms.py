@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import basix
 import dolfinx
+import numpy as np
 
 from dolfinx_invertible import _compat, kernels
 from dolfinx_invertible.material import Material
@@ -70,7 +71,10 @@ class HyperelasticForms:
     constants
         The ``dolfinx.fem.Constant`` the kernels read: a header, the material parameters
         [μ, λ, ε, k] and the reference tables. :meth:`set_material` changes the parameters;
-        nothing is ever recompiled (one compiled kernel serves every element and material).
+        nothing is recompiled.
+
+    Each form is built, and its kernel compiled for this dimension and element (or loaded from
+    numba's disk cache), the first time it is used.
     """
 
     def __init__(
@@ -95,16 +99,56 @@ class HyperelasticForms:
         self.tables = kernels.ReferenceTables.from_basix(
             element, geometry_element, self.quadrature_degree
         )
+        self.counters = kernels.counter_row()
         self.constants = dolfinx.fem.Constant(
-            mesh, kernels.pack_constants(self.tables, gdim, material, self.project)
+            mesh, kernels.pack_constants(self.tables, gdim, material, self.project, self.counters)
         )
-        space = u.function_space
-        arguments = ([u], [self.constants], mesh)
-        self.energy = _compat.custom_form([], kernels.kernel_address("energy"), *arguments)
-        self.residual = _compat.custom_form([space], kernels.kernel_address("residual"), *arguments)
-        self.jacobian = _compat.custom_form(
-            [space, space], kernels.kernel_address("tangent"), *arguments
-        )
+        self._dimension = gdim
+        self._forms: dict[str, object] = {}
+
+    def _form(self, kind: str, spaces: list):
+        # Built, and its kernel compiled, on first use only: a scene without a line search or an
+        # energy report never compiles the energy kernel.
+        if kind not in self._forms:
+            address = kernels.kernel_address(kind, self._dimension)
+            mesh = self.u.function_space.mesh
+            self._forms[kind] = _compat.custom_form(
+                spaces, address, [self.u], [self.constants], mesh
+            )
+        return self._forms[kind]
+
+    @property
+    def energy(self):
+        """Form of the total elastic energy ∫Ψ(F) dX."""
+        return self._form("energy", [])
+
+    @property
+    def residual(self):
+        """Form of dΠ/du."""
+        return self._form("residual", [self.u.function_space])
+
+    @property
+    def jacobian(self):
+        """Form of the tangent d²Π/du²."""
+        space = self.u.function_space
+        return self._form("tangent", [space, space])
+
+    def path_counts(self) -> dict[str, tuple[int, int]]:
+        """Quadrature points evaluated on this rank since the last :meth:`reset_path_counts`, and
+        how many of them went through the SVD path, per kernel: ``{"residual": (points, svd)}``.
+
+        Points that skipped the SVD took the invariant fast path (the extension provably
+        inactive, and for a projected tangent, the exact tangent already positive definite).
+        """
+        counts = self.counters.astype(np.int64)
+        return {
+            kind: (int(counts[2 * index]), int(counts[2 * index + 1]))
+            for index, kind in enumerate(kernels.KERNEL_KINDS)
+        }
+
+    def reset_path_counts(self) -> None:
+        """Zero the counters behind :meth:`path_counts`."""
+        self.counters[:] = 0.0
 
     def set_projection(self, project: bool) -> None:
         """Switch the tangent between SPD-projected and exact, without recompiling."""

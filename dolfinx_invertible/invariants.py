@@ -6,8 +6,15 @@ invariants I₁ = tr C, I₂ = tr C² and J of C = FᵀF gives Ψ and
 
     P = 2 Ψ_{I₁} F + 4 Ψ_{I₂} F C + Ψ_J cof F
 
-directly from F. Σ 1/σᵢ² = tr C⁻¹ is itself an invariant: ½(I₁² − I₂)/J² in 3D, I₁/J² in 2D.
-(The paper prints the C1 test as "I₂/J² ≥ ε"; the sound test is the one above.)
+directly from F, and its derivative
+
+    dP/dF = 2 Ψ_{I₁} 𝕀 + 4 Ψ_{I₂} ∂(F C)/∂F + Ψ_J ∂cof F/∂F + Σ_ab Ψ_ab vₐ ⊗ v_b,
+    v = (2F, 4FC, cof F) = the derivatives of (I₁, I₂, J),
+
+whose SPD projection is the identity whenever it is already positive definite (checked by a
+Cholesky factorisation); only then does the projected tangent skip the SVD. Σ 1/σᵢ² = tr C⁻¹ is
+itself an invariant: ½(I₁² − I₂)/J² in 3D, I₁/J² in 2D. (The paper prints the C1 test as "I₂/J²
+≥ ε"; the sound test is the one above.)
 """
 
 from __future__ import annotations
@@ -15,10 +22,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.extensions.base import C1_ID, C2_ID, IFE_ID
-from dolfinx_invertible.models.registry import model_invariant_terms
+from dolfinx_invertible.models.registry import model_invariant_curvature, model_invariant_terms
 
-__all__ = ["invariant_energy", "invariant_stress", "extension_inactive"]
+__all__ = ["invariant_energy", "invariant_stress", "invariant_tangent", "extension_inactive"]
 
 
 @numba.njit(cache=True)
@@ -114,3 +122,132 @@ def _cofactor(F, i, j):
     j1 = (j + 1) % 3
     j2 = (j + 2) % 3
     return F[i1, j1] * F[i2, j2] - F[i1, j2] * F[i2, j1]
+
+
+@numba.njit(cache=True)
+def _is_positive_definite(C):
+    """Cholesky of the symmetric ``C`` (read, not written) succeeds with positive pivots."""
+    n = C.shape[0]
+    factor = numba.carray(ws.stack_array(81), (9, 9))
+    for j in range(n):
+        pivot = C[j, j]
+        for k in range(j):
+            pivot -= factor[j, k] * factor[j, k]
+        if not pivot > 0.0:
+            return False
+        root = np.sqrt(pivot)
+        factor[j, j] = root
+        for i in range(j + 1, n):
+            value = C[i, j]
+            for k in range(j):
+                value -= factor[i, k] * factor[j, k]
+            factor[i, j] = value / root
+    return True
+
+
+@numba.njit(cache=True)
+def invariant_tangent(F, model_id, extension_id, positive_only, params, project, P, C):
+    """(done, Ψ, region) with P and dP/dF written when ``done``.
+
+    False when the SVD path is needed: the extension may be active, the model is not written in
+    invariants, or the projection was asked for and the tangent is not positive definite.
+    """
+    if F.shape[0] == 3:
+        return _invariant_tangent_3d(
+            F, model_id, extension_id, positive_only, params, project, P, C
+        )
+    return _invariant_tangent_2d(F, model_id, extension_id, positive_only, params, project, P, C)
+
+
+def _specialised_invariant_tangent(d: int):
+    """:func:`invariant_tangent` compiled for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def tangent(F, model_id, extension_id, positive_only, params, project, P, C):
+        I1, I2, J = _invariants(F)
+        if not extension_inactive(extension_id, positive_only, I1, I2, J, d, params):
+            return False, 0.0, 0
+        n = d * d
+        if positive_only and not J > 0.0:
+            P[:, :] = 0.0
+            C[:, :] = 0.0
+            return True, np.inf, -1
+        available, psi, d1, d2, dJ = model_invariant_terms(model_id, I1, I2, J, d, params)
+        if not available:
+            return False, 0.0, 0
+        c11, c22, cJJ, c12, c1J, c2J = model_invariant_curvature(model_id, I1, I2, J, d, params)
+        vectors = numba.carray(ws.stack_array(27), (3, 9))
+        right = numba.carray(ws.stack_array(9), (3, 3))  # C = FᵀF
+        left = numba.carray(ws.stack_array(9), (3, 3))  # B = FFᵀ
+        for i in range(d):
+            for j in range(d):
+                total_right = 0.0
+                total_left = 0.0
+                for k in range(d):
+                    total_right += F[k, i] * F[k, j]
+                    total_left += F[i, k] * F[j, k]
+                right[i, j] = total_right
+                left[i, j] = total_left
+        for i in range(d):
+            for j in range(d):
+                FC = 0.0
+                for k in range(d):
+                    FC += F[i, k] * right[k, j]
+                vectors[0, i * d + j] = 2.0 * F[i, j]
+                vectors[1, i * d + j] = 4.0 * FC
+                vectors[2, i * d + j] = _cofactor(F, i, j)
+                P[i, j] = (
+                    d1 * vectors[0, i * d + j]
+                    + d2 * vectors[1, i * d + j]
+                    + dJ * vectors[2, i * d + j]
+                )
+        for alpha in range(n):
+            a0 = vectors[0, alpha]
+            a1 = vectors[1, alpha]
+            a2 = vectors[2, alpha]
+            w0 = c11 * a0 + c12 * a1 + c1J * a2
+            w1 = c12 * a0 + c22 * a1 + c2J * a2
+            w2 = c1J * a0 + c2J * a1 + cJJ * a2
+            for beta in range(n):
+                C[alpha, beta] = (
+                    w0 * vectors[0, beta] + w1 * vectors[1, beta] + w2 * vectors[2, beta]
+                )
+            C[alpha, alpha] += 2.0 * d1
+        if d2 != 0.0:
+            # 4 Ψ₂ ∂(FC)_ij/∂F_kl = 4 Ψ₂ (δ_ik C_lj + F_il F_kj + B_ik δ_jl)
+            for i in range(d):
+                for j in range(d):
+                    for k in range(d):
+                        for l in range(d):
+                            value = F[i, l] * F[k, j]
+                            if i == k:
+                                value += right[l, j]
+                            if j == l:
+                                value += left[i, k]
+                            C[i * d + j, k * d + l] += 4.0 * d2 * value
+        if dJ != 0.0:
+            if d == 2:
+                for i in range(2):
+                    for j in range(2):
+                        C[i * 2 + j, (1 - i) * 2 + (1 - j)] += dJ if i == j else -dJ
+            else:
+                for i in range(3):
+                    i1 = (i + 1) % 3
+                    i2 = (i + 2) % 3
+                    for j in range(3):
+                        j1 = (j + 1) % 3
+                        j2 = (j + 2) % 3
+                        row = i * 3 + j
+                        C[row, i1 * 3 + j1] += dJ * F[i2, j2]
+                        C[row, i2 * 3 + j2] += dJ * F[i1, j1]
+                        C[row, i1 * 3 + j2] -= dJ * F[i2, j1]
+                        C[row, i2 * 3 + j1] -= dJ * F[i1, j2]
+        if project and not _is_positive_definite(C):
+            return False, 0.0, 0
+        return True, psi, 0
+
+    return tangent
+
+
+_invariant_tangent_2d = _specialised_invariant_tangent(2)
+_invariant_tangent_3d = _specialised_invariant_tangent(3)

@@ -20,6 +20,10 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from dolfinx_invertible import workspace as ws
 from dolfinx_invertible.pointwise import point_energy, point_stress, point_tangent
@@ -69,25 +73,28 @@ class ReferenceTables:
 
 
 @numba.njit(cache=True)
-def _physical_gradients(coordinates, geometry_derivatives, basis_derivatives, gradients, jacobian):
-    """Physical basis gradients at one point into ``gradients``; returns |det J| of the map."""
-    d = jacobian.shape[0]
-    nodes = geometry_derivatives.shape[0]
+def _physical_gradients(coordinates, geometry, basis, gradients, jacobian, nodes, d):
+    """Physical basis gradients at one point into ``gradients``; returns |det J| of the map.
+
+    ``geometry`` and ``basis`` are this point's reference derivatives, flat (node, direction).
+    """
+    geometry_nodes = coordinates.shape[0]
     for i in range(d):
         for r in range(d):
             total = 0.0
-            for v in range(nodes):
-                total += coordinates[v, i] * geometry_derivatives[v, r]
+            for v in range(geometry_nodes):
+                total += coordinates[v, i] * geometry[v * d + r]
             jacobian[i, r] = total
     if d == 2:
         determinant = jacobian[0, 0] * jacobian[1, 1] - jacobian[0, 1] * jacobian[1, 0]
-        k00 = jacobian[1, 1] / determinant
-        k01 = -jacobian[0, 1] / determinant
-        k10 = -jacobian[1, 0] / determinant
-        k11 = jacobian[0, 0] / determinant
-        for a in range(basis_derivatives.shape[0]):
-            x = basis_derivatives[a, 0]
-            y = basis_derivatives[a, 1]
+        inverse = 1.0 / determinant
+        k00 = jacobian[1, 1] * inverse
+        k01 = -jacobian[0, 1] * inverse
+        k10 = -jacobian[1, 0] * inverse
+        k11 = jacobian[0, 0] * inverse
+        for a in range(nodes):
+            x = basis[2 * a]
+            y = basis[2 * a + 1]
             gradients[a, 0] = x * k00 + y * k10
             gradients[a, 1] = x * k01 + y * k11
         return abs(determinant)
@@ -107,10 +114,10 @@ def _physical_gradients(coordinates, geometry_derivatives, basis_derivatives, gr
     k02 = (j[0, 1] * j[1, 2] - j[0, 2] * j[1, 1]) * inverse
     k12 = (j[0, 2] * j[1, 0] - j[0, 0] * j[1, 2]) * inverse
     k22 = (j[0, 0] * j[1, 1] - j[0, 1] * j[1, 0]) * inverse
-    for a in range(basis_derivatives.shape[0]):
-        x = basis_derivatives[a, 0]
-        y = basis_derivatives[a, 1]
-        z = basis_derivatives[a, 2]
+    for a in range(nodes):
+        x = basis[3 * a]
+        y = basis[3 * a + 1]
+        z = basis[3 * a + 2]
         gradients[a, 0] = x * k00 + y * k10 + z * k20
         gradients[a, 1] = x * k01 + y * k11 + z * k21
         gradients[a, 2] = x * k02 + y * k12 + z * k22
@@ -118,28 +125,59 @@ def _physical_gradients(coordinates, geometry_derivatives, basis_derivatives, gr
 
 
 @numba.njit(cache=True)
-def _deformation_gradient(displacement, gradients, F):
-    d = F.shape[0]
+def _deformation_gradient(displacement, gradients, F, nodes, d):
     for i in range(d):
         for j in range(d):
-            total = 1.0 if i == j else 0.0
-            for a in range(gradients.shape[0]):
-                total += displacement[a, i] * gradients[a, j]
-            F[i, j] = total
+            F[i, j] = 1.0 if i == j else 0.0
+    for a in range(nodes):
+        for i in range(d):
+            value = displacement[a * d + i]
+            for j in range(d):
+                F[i, j] += value * gradients[a, j]
 
 
 # Layout of the constants array every kernel reads (one DOLFINx Constant): a header, the
 # material parameters, then the reference tables. Passing the tables as data rather than baking
 # them into the machine code lets one compiled (and disk-cached) kernel serve every element,
 # quadrature rule and material; DOLFINx packs constants once per assembly, not per cell.
-HEADER = 8  # dimension, nodes, points, geometry nodes, model, extension, positive_only, project
+# header: dimension, nodes, points, geometry nodes, model, extension, positive_only, project,
+# and the address (as float64 bits) of the row of PATH_COUNTERS the kernels count into.
+HEADER = 9
 PARAMETER_COUNT = 4  # Material.parameters: [μ, λ, ε, k]
 PROJECT_SLOT = 7  # header entry of the projection switch
+COUNTER_SLOT = 8
+
+# Per-form counts of quadrature points evaluated and of those that needed an SVD:
+# [energy points, energy SVDs, residual points, residual SVDs, tangent points, tangent SVDs].
+# One module-level pool that is never freed, so a kernel can never write into released memory
+# whatever the lifetime of the Python objects around a form; rows are handed out round-robin.
+COUNTER_FIELDS = 6
+PATH_COUNTERS = np.zeros((4096, COUNTER_FIELDS))
+_next_counter_row = [0]
 
 
-def pack_constants(tables: ReferenceTables, dimension: int, material, project: bool) -> np.ndarray:
+def counter_row() -> np.ndarray:
+    """A zeroed row of :data:`PATH_COUNTERS` for one set of forms (round-robin reuse)."""
+    row = PATH_COUNTERS[_next_counter_row[0] % PATH_COUNTERS.shape[0]]
+    _next_counter_row[0] += 1
+    row[:] = 0.0
+    return row
+
+
+def pack_constants(
+    tables: ReferenceTables,
+    dimension: int,
+    material,
+    project: bool,
+    counters: np.ndarray | None = None,
+) -> np.ndarray:
     """The constants array the cell kernels (:func:`kernel_address`) read."""
     points, nodes, _ = tables.basis_derivatives.shape
+    if nodes > _MAX_NODES or tables.geometry_derivatives.shape[1] > _MAX_NODES:
+        raise ValueError(f"the kernels support at most {_MAX_NODES} nodes per cell, got {nodes}")
+    address = 0.0
+    if counters is not None:
+        address = np.array([counters.ctypes.data], dtype=np.int64).view(np.float64)[0]
     header = [
         dimension,
         nodes,
@@ -149,6 +187,7 @@ def pack_constants(tables: ReferenceTables, dimension: int, material, project: b
         material.extension_id,
         float(material.positive_only),
         float(project),
+        address,
     ]
     return np.concatenate(
         [
@@ -161,167 +200,230 @@ def pack_constants(tables: ReferenceTables, dimension: int, material, project: b
     )
 
 
+@intrinsic
+def _pointer_from_bits(typingctx, bits):
+    """The float64 ``bits`` reinterpreted as a pointer to float64 (0.0 gives null)."""
+
+    def codegen(context, builder, signature, args):
+        integer = builder.bitcast(args[0], ir.IntType(64))
+        return builder.inttoptr(integer, context.get_value_type(signature.return_type))
+
+    return types.CPointer(types.float64)(types.float64), codegen
+
+
+@intrinsic
+def _is_null(typingctx, pointer):
+    def codegen(context, builder, signature, args):
+        return cgutils.is_null(builder, args[0])
+
+    return types.boolean(pointer), codegen
+
+
 @numba.njit(cache=True)
-def _unpack(c_, w_, coordinates_):
+def _count(c, field, points, svd_points):
+    pointer = _pointer_from_bits(c[COUNTER_SLOT])
+    if not _is_null(pointer):
+        counters = numba.carray(pointer, COUNTER_FIELDS)
+        counters[field] += points
+        counters[field + 1] += svd_points
+
+
+# Kernel scratch on the stack (never zeroed: every entry is written before it is read):
+# basis gradients (nodes × d), geometry Jacobian, F, P, dP/dF (d² × d²) and dP/dF contracted
+# with the gradients (d² × nodes × d). Sized for the largest supported element (10 nodes).
+_MAX_NODES = 10
+_GRADIENTS = 0
+_JACOBIAN = _GRADIENTS + 3 * _MAX_NODES
+_DEFORMATION = _JACOBIAN + 9
+_STRESS = _DEFORMATION + 9
+_TANGENT = _STRESS + 9
+_CONTRACTED = _TANGENT + 81
+KERNEL_SCRATCH = _CONTRACTED + 9 * 3 * _MAX_NODES
+
+
+@numba.njit(cache=True)
+def _cell_layout(c_, w_, coordinates_, d, nodes):
+    """Views of the kernel inputs for dimension ``d`` and ``nodes`` nodes per cell."""
     header = numba.carray(c_, HEADER)
-    d = int(header[0])
-    nodes = int(header[1])
     points = int(header[2])
     geometry_nodes = int(header[3])
     total = HEADER + PARAMETER_COUNT + points * (1 + (nodes + geometry_nodes) * d)
     c = numba.carray(c_, total)
-    params = c[HEADER : HEADER + PARAMETER_COUNT]
-    start = HEADER + PARAMETER_COUNT
-    weights = c[start : start + points]
-    start += points
-    basis = c[start : start + points * nodes * d]
-    start += points * nodes * d
-    geometry = c[start : start + points * geometry_nodes * d]
-    displacement = numba.carray(w_, (nodes, d))
+    start = HEADER + PARAMETER_COUNT + points
+    geometry_start = start + points * nodes * d
+    displacement = numba.carray(w_, nodes * d)
     coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
-    # Scratch for one quadrature point: physical basis gradients, geometry Jacobian, F, P.
-    scratch = (np.empty((nodes, d)), np.empty((d, d)), np.empty((d, d)), np.empty((d, d)))
-    return d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch
+    return c, points, start, geometry_start, displacement, coordinates
 
 
 @numba.njit(cache=True)
-def _quadrature_point(
-    q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
-):
+def _point_geometry(c, q, start, geometry_start, coordinates, displacement, scratch, d, nodes):
     """Physical basis gradients and F at point ``q``; returns the weight times |det J|."""
-    nodes, d = gradients.shape
-    geometry_nodes = geometry.shape[0] // (weights.shape[0] * d)
-    scale = weights[q] * _physical_gradients(
-        coordinates,
-        geometry[q * geometry_nodes * d : (q + 1) * geometry_nodes * d].reshape(
-            (geometry_nodes, d)
-        ),
-        basis[q * nodes * d : (q + 1) * nodes * d].reshape((nodes, d)),
-        gradients,
-        jacobian,
+    geometry_nodes = coordinates.shape[0]
+    gradients = numba.carray(ws.address(scratch, _GRADIENTS), (nodes, d))
+    jacobian = numba.carray(ws.address(scratch, _JACOBIAN), (d, d))
+    F = numba.carray(ws.address(scratch, _DEFORMATION), (d, d))
+    basis = numba.carray(ws.address(c, start + q * nodes * d), nodes * d)
+    geometry = numba.carray(
+        ws.address(c, geometry_start + q * geometry_nodes * d), geometry_nodes * d
     )
-    _deformation_gradient(displacement, gradients, F)
-    return scale
+    scale = c[HEADER + PARAMETER_COUNT + q] * _physical_gradients(
+        coordinates, geometry, basis, gradients, jacobian, nodes, d
+    )
+    _deformation_gradient(displacement, gradients, F, nodes, d)
+    return scale, gradients, F
 
 
 @numba.njit(cache=True)
-def _ids(c_):
-    header = numba.carray(c_, HEADER)
-    return int(header[4]), int(header[5]), header[6] != 0.0, header[PROJECT_SLOT] != 0.0
+def _switches(c):
+    return int(c[4]), int(c[5]), c[6] != 0.0, c[PROJECT_SLOT] != 0.0
 
 
+# The cell functions are compiled per dimension, a literal constant (numba.literally), so the
+# loops over components have constant trip counts and are unrolled and vectorised: with a
+# run-time dimension the same loops were several times slower (a constant node count as well
+# measured no faster). Only the dimension a scene uses is ever compiled (see kernel_address).
 @numba.njit(cache=True)
-def cell_energy(A_, w_, c_, coordinates_):
+def cell_energy(A_, w_, c_, coordinates_, d):
     """Cell energy ∫Ψ(F) dX."""
-    d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
-        _unpack(c_, w_, coordinates_)
+    numba.literally(d)
+    nodes = int(c_[1])
+    c, points, start, geometry_start, displacement, coordinates = _cell_layout(
+        c_, w_, coordinates_, d, nodes
     )
-    gradients, jacobian, F, P = scratch
-    model_id, extension_id, positive_only, _ = _ids(c_)
+    model_id, extension_id, positive_only, _ = _switches(c)
+    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     total = 0.0
+    svd_points = 0
     for q in range(points):
-        scale = _quadrature_point(
-            q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
+        scale, _, F = _point_geometry(
+            c, q, start, geometry_start, coordinates, displacement, scratch, d, nodes
         )
-        psi, _ = point_energy(F, model_id, extension_id, positive_only, params, work)
+        psi, _, through_svd = point_energy(F, model_id, extension_id, positive_only, params, work)
+        svd_points += through_svd
         total += scale * psi
     A_[0] += total
+    _count(c, 0, points, svd_points)
 
 
 @numba.njit(cache=True)
-def cell_residual(A_, w_, c_, coordinates_):
+def cell_residual(A_, w_, c_, coordinates_, d):
     """Cell residual ∫ P : ∇φ dX."""
-    d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
-        _unpack(c_, w_, coordinates_)
+    numba.literally(d)
+    nodes = int(c_[1])
+    c, points, start, geometry_start, displacement, coordinates = _cell_layout(
+        c_, w_, coordinates_, d, nodes
     )
-    gradients, jacobian, F, P = scratch
-    model_id, extension_id, positive_only, _ = _ids(c_)
-    A = numba.carray(A_, nodes * d)
+    model_id, extension_id, positive_only, _ = _switches(c)
+    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
+    P = numba.carray(ws.address(scratch, _STRESS), (d, d))
+    A = numba.carray(A_, nodes * d)
+    svd_points = 0
     for q in range(points):
-        scale = _quadrature_point(
-            q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
+        scale, gradients, F = _point_geometry(
+            c, q, start, geometry_start, coordinates, displacement, scratch, d, nodes
         )
-        point_stress(F, model_id, extension_id, positive_only, params, work, P)
+        _, _, through_svd = point_stress(F, model_id, extension_id, positive_only, params, work, P)
+        svd_points += through_svd
         for a in range(nodes):
             for i in range(d):
                 total = 0.0
                 for j in range(d):
                     total += P[i, j] * gradients[a, j]
                 A[a * d + i] += scale * total
+    _count(c, 2, points, svd_points)
 
 
 @numba.njit(cache=True)
-def cell_tangent(A_, w_, c_, coordinates_):
+def cell_tangent(A_, w_, c_, coordinates_, d):
     """Cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
-    d, nodes, points, params, weights, basis, geometry, displacement, coordinates, scratch = (
-        _unpack(c_, w_, coordinates_)
+    numba.literally(d)
+    nodes = int(c_[1])
+    c, points, start, geometry_start, displacement, coordinates = _cell_layout(
+        c_, w_, coordinates_, d, nodes
     )
-    gradients, jacobian, F, P = scratch
-    model_id, extension_id, positive_only, project = _ids(c_)
+    model_id, extension_id, positive_only, project = _switches(c)
+    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
+    work = ws.new_workspace(ws.stack_buffer())
+    n = d * d
+    P = numba.carray(ws.address(scratch, _STRESS), (d, d))
+    C = numba.carray(ws.address(scratch, _TANGENT), (n, n))
+    # CB[(i, j), b, k] = Σ_l C[(i, j), (k, l)] ∂φ_b/∂X_l, times the point's weight
+    CB = numba.carray(ws.address(scratch, _CONTRACTED), (n, nodes, d))
     size = nodes * d
     A = numba.carray(A_, (size, size))
-    work = ws.new_workspace(ws.stack_buffer())
-    C = np.empty((d * d, d * d))
-    # CB[(i, j), b, k] = Σ_l C[(i, j), (k, l)] ∂φ_b/∂X_l
-    CB = np.empty((d * d, nodes, d))
+    svd_points = 0
     for q in range(points):
-        scale = _quadrature_point(
-            q, weights, basis, geometry, coordinates, displacement, gradients, jacobian, F
+        scale, gradients, F = _point_geometry(
+            c, q, start, geometry_start, coordinates, displacement, scratch, d, nodes
         )
-        point_tangent(F, model_id, extension_id, positive_only, params, project, work, P, C)
-        for row in range(d * d):
+        _, _, through_svd = point_tangent(
+            F, model_id, extension_id, positive_only, params, project, work, P, C
+        )
+        svd_points += through_svd
+        for row in range(n):
             for b in range(nodes):
                 for k in range(d):
                     total = 0.0
                     for l in range(d):
                         total += C[row, k * d + l] * gradients[b, l]
                     CB[row, b, k] = total * scale
+        # The tangent is symmetric: fill the upper block triangle (b ≥ a), mirror at the end.
         for a in range(nodes):
             for i in range(d):
-                for b in range(nodes):
+                for b in range(a, nodes):
                     for k in range(d):
                         total = 0.0
                         for j in range(d):
                             total += gradients[a, j] * CB[i * d + j, b, k]
                         A[a * d + i, b * d + k] += total
+    for a in range(nodes):
+        for b in range(a + 1, nodes):
+            for i in range(d):
+                for k in range(d):
+                    A[b * d + k, a * d + i] = A[a * d + i, b * d + k]
+    _count(c, 4, points, svd_points)
 
 
-# The C entry points DOLFINx calls. Two arities because ufcx's tabulate_tensor gained a
-# ``custom_data`` pointer in DOLFINx 0.10; _compat says which one this DOLFINx wants. They are
-# compiled on first use only (see kernel_address), so a scene that never asks for the energy,
-# say, never compiles its kernel.
-def _energy_entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
-    cell_energy(A_, w_, c_, coordinates_)
+# The C entry points DOLFINx calls, one per (kind, dimension). Two arities because
+# ufcx's tabulate_tensor gained a ``custom_data`` pointer in DOLFINx 0.10; _compat says which
+# one this DOLFINx wants. They are compiled on first use only (see kernel_address), so a scene
+# that never asks for the energy, say, never compiles its kernel.
+def _entries(kind: str, d: int) -> tuple:
+    if kind == "energy":
+
+        def entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
+            cell_energy(A_, w_, c_, coordinates_, d)
+
+        def entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+            cell_energy(A_, w_, c_, coordinates_, d)
+
+    elif kind == "residual":
+
+        def entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
+            cell_residual(A_, w_, c_, coordinates_, d)
+
+        def entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+            cell_residual(A_, w_, c_, coordinates_, d)
+
+    else:
+
+        def entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
+            cell_tangent(A_, w_, c_, coordinates_, d)
+
+        def entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+            cell_tangent(A_, w_, c_, coordinates_, d)
+
+    return entry, entry_with_data
 
 
-def _residual_entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
-    cell_residual(A_, w_, c_, coordinates_)
-
-
-def _tangent_entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
-    cell_tangent(A_, w_, c_, coordinates_)
-
-
-def _energy_entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-    cell_energy(A_, w_, c_, coordinates_)
-
-
-def _residual_entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-    cell_residual(A_, w_, c_, coordinates_)
-
-
-def _tangent_entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-    cell_tangent(A_, w_, c_, coordinates_)
-
-
-_ENTRIES = {
-    "energy": (_energy_entry, _energy_entry_with_data),
-    "residual": (_residual_entry, _residual_entry_with_data),
-    "tangent": (_tangent_entry, _tangent_entry_with_data),
-}
-_COMPILED: dict[str, object] = {}
+KERNEL_KINDS = ("energy", "residual", "tangent")
+_COMPILED: dict[tuple, object] = {}
 
 
 def compile_kernel(entries: tuple) -> object:
@@ -337,8 +439,14 @@ def compile_kernel(entries: tuple) -> object:
     return numba.cfunc(_compat.KERNEL_SIGNATURE, nopython=True, cache=True)(entry)
 
 
-def kernel_address(kind: str) -> int:
-    """Address of the compiled ``"energy"``, ``"residual"`` or ``"tangent"`` cell kernel."""
-    if kind not in _COMPILED:
-        _COMPILED[kind] = compile_kernel(_ENTRIES[kind])
-    return _COMPILED[kind].address
+def kernel_address(kind: str, dimension: int) -> int:
+    """Address of the compiled ``"energy"``, ``"residual"`` or ``"tangent"`` cell kernel for
+    ``dimension`` 2 or 3 (any supported element: up to 10 nodes per cell)."""
+    if kind not in KERNEL_KINDS:
+        raise ValueError(f"kind must be one of {KERNEL_KINDS}, got {kind!r}")
+    if dimension not in (2, 3):
+        raise ValueError(f"no kernel for dimension {dimension}; 2 and 3 are supported")
+    key = (kind, int(dimension))
+    if key not in _COMPILED:
+        _COMPILED[key] = compile_kernel(_entries(*key))
+    return _COMPILED[key].address

@@ -11,7 +11,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible import workspace as ws
-from dolfinx_invertible.invariants import invariant_energy, invariant_stress
+from dolfinx_invertible.invariants import invariant_energy, invariant_stress, invariant_tangent
 from dolfinx_invertible.principal import UNDEFINED_REGION, principal_derivatives
 from dolfinx_invertible.svd import polar_svd_point
 from dolfinx_invertible.tangent import first_piola, stress_derivative
@@ -35,24 +35,26 @@ _TANGENT = np.array([2])[0]
 
 @numba.njit(cache=True)
 def point_energy(F, model_id, extension_id, positive_only, params, work):
-    """(Ψ(F), region); ``work`` is a workspace buffer (see :mod:`~dolfinx_invertible.workspace`)."""
+    """(Ψ(F), region, through_svd); ``work`` is a workspace buffer (see
+    :mod:`~dolfinx_invertible.workspace`), ``through_svd`` says whether the SVD path was taken."""
     done, psi, region = invariant_energy(F, model_id, extension_id, positive_only, params)
     if done:
-        return psi, region
+        return psi, region, False
     d = F.shape[0]
     sigma = ws.vector(work, ws.SIGMA, d)
     polar_svd_point(F, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
-    return principal_derivatives(
+    psi, region = principal_derivatives(
         model_id, extension_id, positive_only, sigma, params, _ENERGY, work
     )
+    return psi, region, True
 
 
 @numba.njit(cache=True)
 def point_stress(F, model_id, extension_id, positive_only, params, work, P):
-    """P(F) into ``P``; returns (Ψ(F), region)."""
+    """P(F) into ``P``; returns (Ψ(F), region, through_svd)."""
     done, psi, region = invariant_stress(F, model_id, extension_id, positive_only, params, P)
     if done:
-        return psi, region
+        return psi, region, False
     d = F.shape[0]
     sigma = ws.vector(work, ws.SIGMA, d)
     U = ws.matrix(work, ws.U, d)
@@ -62,12 +64,18 @@ def point_stress(F, model_id, extension_id, positive_only, params, work, P):
         model_id, extension_id, positive_only, sigma, params, _STRESS, work
     )
     first_piola(U, ws.vector(work, ws.G, d), V, P)
-    return psi, region
+    return psi, region, True
 
 
 @numba.njit(cache=True)
 def point_tangent(F, model_id, extension_id, positive_only, params, project, work, P, C):
-    """P(F) into ``P`` and dP/dF (projected if ``project``) into ``C``; returns (Ψ, region)."""
+    """P(F) into ``P`` and dP/dF (projected if ``project``) into ``C``; returns
+    (Ψ, region, through_svd)."""
+    done, psi, region = invariant_tangent(
+        F, model_id, extension_id, positive_only, params, project, P, C
+    )
+    if done:
+        return psi, region, False
     d = F.shape[0]
     sigma = ws.vector(work, ws.SIGMA, d)
     U = ws.matrix(work, ws.U, d)
@@ -81,14 +89,14 @@ def point_tangent(F, model_id, extension_id, positive_only, params, project, wor
         C[:, :] = 0.0
     else:
         stress_derivative(model_id, region, sigma, params, work, project, C)
-    return psi, region
+    return psi, region, True
 
 
 @numba.njit(cache=True)
 def energy_batch(F, model_id, extension_id, positive_only, params, energy, region):
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
-        energy[n], region[n] = point_energy(
+        energy[n], region[n], _ = point_energy(
             F[n], model_id, extension_id, positive_only, params, work
         )
 
@@ -97,7 +105,9 @@ def energy_batch(F, model_id, extension_id, positive_only, params, energy, regio
 def stress_batch(F, model_id, extension_id, positive_only, params, P, region):
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
-        _, region[n] = point_stress(F[n], model_id, extension_id, positive_only, params, work, P[n])
+        _, region[n], _ = point_stress(
+            F[n], model_id, extension_id, positive_only, params, work, P[n]
+        )
 
 
 @numba.njit(cache=True)
@@ -106,7 +116,7 @@ def tangent_batch(F, model_id, extension_id, positive_only, params, project, C, 
     work = ws.new_workspace(ws.stack_buffer())
     P = np.empty((d, d))
     for n in range(F.shape[0]):
-        _, region[n] = point_tangent(
+        _, region[n], _ = point_tangent(
             F[n], model_id, extension_id, positive_only, params, project, work, P, C[n]
         )
 

@@ -178,7 +178,18 @@ class HyperelasticProblem:
         """Solve from the current ``u``; returns a :class:`~dolfinx_invertible.solver.SolveResult`.
 
         On failure ``u`` keeps its value from before the call (see ``result.converged``).
+        ``result.svd_share`` says how often the kernels needed the SVD during the solve.
         """
+        self.forms.reset_path_counts()
+        result = self._solve()
+        comm = self.u.function_space.mesh.comm
+        shares = {}
+        for kind, (points, svd_points) in self.forms.path_counts().items():
+            points, svd_points = comm.allreduce(np.array([points, svd_points]), op=MPI.SUM)
+            shares[kind] = float(svd_points / points) if points > 0 else None
+        return dataclasses.replace(result, svd_share=shares)
+
+    def _solve(self) -> SolveResult:
         if self.project != "auto":
             result = self.solver.solve()
             return dataclasses.replace(result, tangent="projected" if self.project else "exact")

@@ -138,6 +138,11 @@ class SolveResult:
     tangent
         Which tangent produced the result, where a caller chooses: ``"exact"`` or
         ``"projected"`` (see :class:`~dolfinx_invertible.problem.HyperelasticProblem`).
+    svd_share
+        Where the solve ran our kernels: for each kernel ("energy", "residual", "tangent") the
+        share of quadrature-point evaluations, summed over ranks and all assemblies of the
+        solve, that went through the SVD path rather than the invariant fast path (``None``
+        for a kernel that never ran).
     """
 
     converged: bool
@@ -150,6 +155,7 @@ class SolveResult:
     wall_time: float
     residual_history: tuple[float, ...] = ()
     tangent: str = ""
+    svd_share: dict[str, float | None] = dataclasses.field(default_factory=dict)
 
 
 def _as_form_list(forms: Any, rank: int, name: str) -> list:

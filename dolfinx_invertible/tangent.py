@@ -113,62 +113,77 @@ def clamp_symmetric(A, eigenvalues, eigenvectors):
 @numba.njit(cache=True)
 def stress_derivative(model_id, region, sigma, params, work, project, C):
     """dP/dF as a (d², d²) matrix into ``C`` from the U, V, G and H workspace slots."""
-    d = sigma.shape[0]
-    n = d * d
-    U = ws.matrix(work, ws.U, d)
-    V = ws.matrix(work, ws.V, d)
-    A = ws.matrix(work, ws.A_BLOCK, d)
-    hessian = ws.matrix(work, ws.H, d)
-    gradient = ws.vector(work, ws.G, d)
-    modes = ws.modes(work, ws.MODES, d)
-    weighted = ws.modes(work, ws.WEIGHTED, d)
-    for m in range(d):
+    if sigma.shape[0] == 3:
+        _stress_derivative_3d(model_id, region, sigma, params, work, project, C)
+    else:
+        _stress_derivative_2d(model_id, region, sigma, params, work, project, C)
+
+
+def _specialised_stress_derivative(d: int):
+    """:func:`stress_derivative` compiled for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def derivative(model_id, region, sigma, params, work, project, C):
+        n = d * d
+        U = ws.matrix(work, ws.U, d)
+        V = ws.matrix(work, ws.V, d)
+        A = ws.matrix(work, ws.A_BLOCK, d)
+        hessian = ws.matrix(work, ws.H, d)
+        gradient = ws.vector(work, ws.G, d)
+        modes = ws.modes(work, ws.MODES, d)
+        weighted = ws.modes(work, ws.WEIGHTED, d)
+        for m in range(d):
+            for i in range(d):
+                for j in range(d):
+                    modes[m, i * d + j] = U[i, m] * V[j, m]
         for i in range(d):
             for j in range(d):
-                modes[m, i * d + j] = U[i, m] * V[j, m]
-    for i in range(d):
-        for j in range(d):
-            A[i, j] = hessian[i, j]
-    if project:
-        clamp_symmetric(A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d))
-    for m in range(d):
+                A[i, j] = hessian[i, j]
+        if project:
+            clamp_symmetric(
+                A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d)
+            )
+        for m in range(d):
+            for alpha in range(n):
+                total = 0.0
+                for k in range(d):
+                    total += A[k, m] * modes[k, alpha]
+                weighted[m, alpha] = total
         for alpha in range(n):
-            total = 0.0
-            for k in range(d):
-                total += A[k, m] * modes[k, alpha]
-            weighted[m, alpha] = total
-    for alpha in range(n):
-        for beta in range(alpha, n):
-            total = 0.0
-            for m in range(d):
-                total += weighted[m, alpha] * modes[m, beta]
-            C[alpha, beta] = total
-    for i in range(d - 1):
-        for j in range(i + 1, d):
-            stretch = gradient_slope(model_id, region, sigma, params, work, i, j)
-            twist = rotation_slope(sigma, gradient, i, j)
-            if project:
-                stretch = max(stretch, 0.0)
-                twist = max(twist, 0.0)
-            same = 0.5 * (stretch + twist)
-            cross = 0.5 * (stretch - twist)
-            # x = vec(uᵢ vⱼᵀ), y = vec(uⱼ vᵢᵀ):
-            # a s sᵀ + b t tᵀ = same (xxᵀ + yyᵀ) + cross (xyᵀ + yxᵀ)
-            for p in range(d):
-                for r in range(d):
-                    alpha = p * d + r
-                    x_alpha = U[p, i] * V[r, j]
-                    y_alpha = U[p, j] * V[r, i]
-                    for p2 in range(d):
-                        for r2 in range(d):
-                            beta = p2 * d + r2
-                            if beta < alpha:
-                                continue
-                            x_beta = U[p2, i] * V[r2, j]
-                            y_beta = U[p2, j] * V[r2, i]
-                            C[alpha, beta] += same * (
-                                x_alpha * x_beta + y_alpha * y_beta
-                            ) + cross * (x_alpha * y_beta + y_alpha * x_beta)
-    for alpha in range(n):
-        for beta in range(alpha):
-            C[alpha, beta] = C[beta, alpha]
+            for beta in range(alpha, n):
+                total = 0.0
+                for m in range(d):
+                    total += weighted[m, alpha] * modes[m, beta]
+                C[alpha, beta] = total
+        stretch_mode = ws.vector(work, ws.STRETCH_MODE, n)
+        twist_mode = ws.vector(work, ws.TWIST_MODE, n)
+        for i in range(d - 1):
+            for j in range(i + 1, d):
+                stretch = gradient_slope(model_id, region, sigma, params, work, i, j)
+                twist = rotation_slope(sigma, gradient, i, j)
+                if project:
+                    stretch = max(stretch, 0.0)
+                    twist = max(twist, 0.0)
+                # a s sᵀ + b t tᵀ with s, t = vec(uᵢ vⱼᵀ ± uⱼ vᵢᵀ)/√2; the 1/2 goes into a and b.
+                for p in range(d):
+                    for r in range(d):
+                        x = U[p, i] * V[r, j]
+                        y = U[p, j] * V[r, i]
+                        stretch_mode[p * d + r] = x + y
+                        twist_mode[p * d + r] = x - y
+                stretch *= 0.5
+                twist *= 0.5
+                for alpha in range(n):
+                    s_alpha = stretch * stretch_mode[alpha]
+                    t_alpha = twist * twist_mode[alpha]
+                    for beta in range(alpha, n):
+                        C[alpha, beta] += s_alpha * stretch_mode[beta] + t_alpha * twist_mode[beta]
+        for alpha in range(n):
+            for beta in range(alpha):
+                C[alpha, beta] = C[beta, alpha]
+
+    return derivative
+
+
+_stress_derivative_2d = _specialised_stress_derivative(2)
+_stress_derivative_3d = _specialised_stress_derivative(3)

@@ -17,8 +17,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-__all__ = ["WORKSPACE_SIZE", "stack_buffer", "new_workspace", "vector", "matrix", "table",
-           "tensor3", "tensor4"]  # fmt: skip
+__all__ = ["WORKSPACE_SIZE", "stack_buffer", "stack_array", "address", "new_workspace",
+           "vector", "matrix", "table", "tensor3", "tensor4"]  # fmt: skip
 
 # Slot offsets. Vectors take 3 entries, matrices 9, tables (d, 5) 15, third-order tensors 27,
 # fourth-order 81, mode sets (d, d²) 27.
@@ -30,7 +30,8 @@ Q_POINT, A_OFFSET, Z, N, T2, Q3 = 183, 186, 189, 192, 195, 198  # extension vect
 T1, Q2, DN = 201, 210, 219  # extension matrices
 A_BLOCK, EIGENVALUES, EIGENVECTORS = 228, 237, 240  # SPD projection
 MODES, WEIGHTED = 249, 276  # F-space assembly
-WORKSPACE_SIZE = 303
+STRETCH_MODE, TWIST_MODE = 303, 312  # one pair's stretch and twist modes, d² entries each
+WORKSPACE_SIZE = 321
 
 
 @intrinsic
@@ -48,7 +49,21 @@ def stack_buffer(typingctx):
 
 
 @intrinsic
-def _address(typingctx, array, offset):
+def stack_array(typingctx, size):
+    """A pointer to ``size`` float64 on the calling function's stack; ``size`` a constant."""
+    if not isinstance(size, types.IntegerLiteral):
+        return None
+    count = size.literal_value
+
+    def codegen(context, builder, signature, args):
+        element = context.get_data_type(types.float64)
+        return cgutils.alloca_once(builder, element, size=count)
+
+    return types.CPointer(types.float64)(size), codegen
+
+
+@intrinsic
+def address(typingctx, array, offset):
     """Pointer to ``array[offset]`` (no bounds check)."""
 
     def codegen(context, builder, signature, args):
@@ -70,29 +85,29 @@ def new_workspace(pointer):
 # helper on every access, which costs more than the arithmetic that follows.
 @numba.njit(cache=True)
 def vector(work, offset, d):
-    return numba.carray(_address(work, offset), d)
+    return numba.carray(address(work, offset), d)
 
 
 @numba.njit(cache=True)
 def matrix(work, offset, d):
-    return numba.carray(_address(work, offset), (d, d))
+    return numba.carray(address(work, offset), (d, d))
 
 
 @numba.njit(cache=True)
 def table(work, offset, d):
-    return numba.carray(_address(work, offset), (d, 5))
+    return numba.carray(address(work, offset), (d, 5))
 
 
 @numba.njit(cache=True)
 def tensor3(work, offset, d):
-    return numba.carray(_address(work, offset), (d, d, d))
+    return numba.carray(address(work, offset), (d, d, d))
 
 
 @numba.njit(cache=True)
 def tensor4(work, offset, d):
-    return numba.carray(_address(work, offset), (d, d, d, d))
+    return numba.carray(address(work, offset), (d, d, d, d))
 
 
 @numba.njit(cache=True)
 def modes(work, offset, d):
-    return numba.carray(_address(work, offset), (d, d * d))
+    return numba.carray(address(work, offset), (d, d * d))

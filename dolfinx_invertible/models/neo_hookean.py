@@ -54,6 +54,12 @@ def invariant_terms(I1, I2, J, d, mu, lam):
     return psi, 0.5 * mu, 0.0, (lam * log_J - mu) / J
 
 
+@numba.njit(cache=True)
+def invariant_curvature(I1, I2, J, d, mu, lam):
+    """Second derivatives (Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) in (I₁, I₂, J) (J > 0)."""
+    return 0.0, 0.0, (lam * (1.0 - math.log(J)) + mu) / (J * J), 0.0, 0.0, 0.0
+
+
 class NeoHookean(Model):
     """Compressible Neo-Hookean energy (the paper's example model); needs J > 0 unextended."""
 

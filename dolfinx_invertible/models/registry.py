@@ -25,6 +25,7 @@ __all__ = [
     "model_derivatives_into",
     "model_gradient_slope",
     "model_invariant_terms",
+    "model_invariant_curvature",
 ]
 
 
@@ -92,6 +93,18 @@ def model_invariant_terms(model_id, I1, I2, J, d, params):
         psi, d1, d2, dJ = stvk.invariant_terms(I1, I2, J, d, mu, lam)
         return True, psi, d1, d2, dJ
     return False, 0.0, 0.0, 0.0, 0.0
+
+
+@numba.njit(cache=True)
+def model_invariant_curvature(model_id, I1, I2, J, d, params):
+    """(Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) for the models :func:`model_invariant_terms` serves."""
+    mu = params[0]
+    lam = params[1]
+    if model_id == neo_hookean.MODEL_ID:
+        return neo_hookean.invariant_curvature(I1, I2, J, d, mu, lam)
+    if model_id == stable_neo_hookean.MODEL_ID:
+        return stable_neo_hookean.invariant_curvature(I1, I2, J, d, mu, lam)
+    return stvk.invariant_curvature(I1, I2, J, d, mu, lam)
 
 
 @numba.njit(cache=True)

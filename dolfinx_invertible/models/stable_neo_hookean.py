@@ -51,6 +51,12 @@ def invariant_terms(I1, I2, J, d, mu, lam):
     return psi, 0.5 * mu, 0.0, (lam + mu) * (J - 1.0) - mu
 
 
+@numba.njit(cache=True)
+def invariant_curvature(I1, I2, J, d, mu, lam):
+    """Second derivatives (Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) in (I₁, I₂, J)."""
+    return 0.0, 0.0, lam + mu, 0.0, 0.0, 0.0
+
+
 class StableNeoHookean(Model):
     """Stable Neo-Hookean flesh model (Smith, de Goes, Kim 2018), inversion-safe by design."""
 

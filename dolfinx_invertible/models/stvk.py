@@ -50,6 +50,12 @@ def invariant_terms(I1, I2, J, d, mu, lam):
     return psi, -0.5 * mu + 0.25 * lam * (I1 - d), 0.25 * mu, 0.0
 
 
+@numba.njit(cache=True)
+def invariant_curvature(I1, I2, J, d, mu, lam):
+    """Second derivatives (Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) in (I₁, I₂, J)."""
+    return 0.25 * lam, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
 class StVK(Model):
     """St. Venant–Kirchhoff energy (quadratic in Green strain; softens under compression)."""
 
