@@ -239,7 +239,7 @@ def table(report: dict) -> str:
     lines.append(f"race check: {'ok' if report['race_ok'] else 'FAILED'}")
     if report["sources_changed_during_run"]:
         lines.append(
-            "warning: package sources changed during the run, so later runs recompiled: "
+            "warning: package sources changed during the run; later runs may have recompiled: "
             + ", ".join(report["sources_changed_during_run"])
         )
     return "\n".join(lines)
