@@ -345,7 +345,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="subcommand", required=True)
     for name, (help_text, add_arguments, command) in SUBCOMMANDS.items():
-        subparser = subparsers.add_parser(name, help=help_text)
+        subparser = subparsers.add_parser(name, help=help_text, description=help_text)
         add_arguments(subparser)
         subparser.set_defaults(command=command)
     return parser
