@@ -125,7 +125,7 @@ def _cofactor(F, i, j):
 
 
 @numba.njit(cache=True)
-def _is_positive_definite(C):
+def _cholesky_positive(C):
     """Cholesky of the symmetric ``C`` (read, not written) succeeds with positive pivots."""
     n = C.shape[0]
     factor = numba.carray(ws.stack_array(81), (9, 9))
@@ -242,7 +242,7 @@ def _specialised_invariant_tangent(d: int):
                         C[row, i2 * 3 + j2] += dJ * F[i1, j1]
                         C[row, i1 * 3 + j2] -= dJ * F[i2, j1]
                         C[row, i2 * 3 + j1] -= dJ * F[i1, j2]
-        if project and not _is_positive_definite(C):
+        if project and not _cholesky_positive(C):
             return False, 0.0, 0
         return True, psi, 0
 

@@ -60,54 +60,70 @@ def _is_positive_definite(A):
 @numba.njit(cache=True)
 def clamp_symmetric(A, eigenvalues, eigenvectors):
     """Replace symmetric ``A`` in place by its projection onto the PSD cone (cyclic Jacobi)."""
-    if _is_positive_definite(A):
-        return
-    d = A.shape[0]
-    for i in range(d):
-        for j in range(d):
-            eigenvectors[i, j] = 1.0 if i == j else 0.0
-    for _ in range(_MAX_EIGEN_SWEEPS):
-        off = 0.0
-        diagonal = 0.0
-        for p in range(d):
-            diagonal += A[p, p] * A[p, p]
-            for q in range(p + 1, d):
-                off += A[p, q] * A[p, q]
-        if off <= 1e-32 * diagonal or off == 0.0:
-            break
-        for p in range(d - 1):
-            for q in range(p + 1, d):
-                if A[p, q] == 0.0:
-                    continue
-                theta = (A[q, q] - A[p, p]) / (2.0 * A[p, q])
-                t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
-                if theta < 0.0:
-                    t = -t
-                c = 1.0 / np.sqrt(t * t + 1.0)
-                s = t * c
-                for k in range(d):
-                    akp = A[k, p]
-                    akq = A[k, q]
-                    A[k, p] = c * akp - s * akq
-                    A[k, q] = s * akp + c * akq
-                for k in range(d):
-                    apk = A[p, k]
-                    aqk = A[q, k]
-                    A[p, k] = c * apk - s * aqk
-                    A[q, k] = s * apk + c * aqk
-                for k in range(d):
-                    vkp = eigenvectors[k, p]
-                    vkq = eigenvectors[k, q]
-                    eigenvectors[k, p] = c * vkp - s * vkq
-                    eigenvectors[k, q] = s * vkp + c * vkq
-    for m in range(d):
-        eigenvalues[m] = max(A[m, m], 0.0)
-    for i in range(d):
-        for j in range(d):
-            total = 0.0
-            for m in range(d):
-                total += eigenvectors[i, m] * eigenvalues[m] * eigenvectors[j, m]
-            A[i, j] = total
+    if A.shape[0] == 3:
+        _clamp_symmetric_3d(A, eigenvalues, eigenvectors)
+    else:
+        _clamp_symmetric_2d(A, eigenvalues, eigenvectors)
+
+
+def _specialised_clamp_symmetric(d: int):
+    """:func:`clamp_symmetric` for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def clamp(A, eigenvalues, eigenvectors):
+        if _is_positive_definite(A):
+            return
+        for i in range(d):
+            for j in range(d):
+                eigenvectors[i, j] = 1.0 if i == j else 0.0
+        for _ in range(_MAX_EIGEN_SWEEPS):
+            off = 0.0
+            diagonal = 0.0
+            for p in range(d):
+                diagonal += A[p, p] * A[p, p]
+                for q in range(p + 1, d):
+                    off += A[p, q] * A[p, q]
+            if off <= 1e-32 * diagonal or off == 0.0:
+                break
+            for p in range(d - 1):
+                for q in range(p + 1, d):
+                    if A[p, q] == 0.0:
+                        continue
+                    theta = (A[q, q] - A[p, p]) / (2.0 * A[p, q])
+                    t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                    if theta < 0.0:
+                        t = -t
+                    c = 1.0 / np.sqrt(t * t + 1.0)
+                    s = t * c
+                    for k in range(d):
+                        akp = A[k, p]
+                        akq = A[k, q]
+                        A[k, p] = c * akp - s * akq
+                        A[k, q] = s * akp + c * akq
+                    for k in range(d):
+                        apk = A[p, k]
+                        aqk = A[q, k]
+                        A[p, k] = c * apk - s * aqk
+                        A[q, k] = s * apk + c * aqk
+                    for k in range(d):
+                        vkp = eigenvectors[k, p]
+                        vkq = eigenvectors[k, q]
+                        eigenvectors[k, p] = c * vkp - s * vkq
+                        eigenvectors[k, q] = s * vkp + c * vkq
+        for m in range(d):
+            eigenvalues[m] = max(A[m, m], 0.0)
+        for i in range(d):
+            for j in range(d):
+                total = 0.0
+                for m in range(d):
+                    total += eigenvectors[i, m] * eigenvalues[m] * eigenvectors[j, m]
+                A[i, j] = total
+
+    return clamp
+
+
+_clamp_symmetric_2d = _specialised_clamp_symmetric(2)
+_clamp_symmetric_3d = _specialised_clamp_symmetric(3)
 
 
 @numba.njit(cache=True)

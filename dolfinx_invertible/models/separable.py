@@ -68,86 +68,103 @@ def separable_derivatives(sigma, order, f, h, c, k1, k2, g, H, T, Q):
 
     Terms whose constant is zero are skipped: most models have either the c or the k terms.
     """
-    d = sigma.shape[0]
-    has_sum = c != 0.0
-    has_volume = k1 != 0.0 or k2 != 0.0
-    S = 0.0
-    J = 1.0
-    psi = 0.0
-    for i in range(d):
-        psi += f[i, 0]
-        S += h[i, 0]
-        J *= sigma[i]
-    psi += 0.5 * c * S * S + k1 * (J - 1.0) + 0.5 * k2 * (J - 1.0) ** 2
-    if order < 1:
-        return psi
-    dK = k1 + k2 * (J - 1.0)
-    for i in range(d):
-        g[i] = f[i, 1] + c * S * h[i, 1]
-        if has_volume:
-            g[i] += dK * volume_derivative(sigma, i, -1, -1, -1)
-    if order < 2:
-        return psi
-    for i in range(d):
-        for j in range(d):
-            value = c * h[i, 1] * h[j, 1]
+    if sigma.shape[0] == 3:
+        return _separable_derivatives_3d(sigma, order, f, h, c, k1, k2, g, H, T, Q)
+    return _separable_derivatives_2d(sigma, order, f, h, c, k1, k2, g, H, T, Q)
+
+
+def _specialised_separable_derivatives(d: int):
+    """:func:`separable_derivatives` for one dimension: constant loop bounds unroll and
+    the index tests fold away."""
+
+    @numba.njit(cache=True)
+    def specialised(sigma, order, f, h, c, k1, k2, g, H, T, Q):
+        has_sum = c != 0.0
+        has_volume = k1 != 0.0 or k2 != 0.0
+        S = 0.0
+        J = 1.0
+        psi = 0.0
+        for i in range(d):
+            psi += f[i, 0]
+            S += h[i, 0]
+            J *= sigma[i]
+        psi += 0.5 * c * S * S + k1 * (J - 1.0) + 0.5 * k2 * (J - 1.0) ** 2
+        if order < 1:
+            return psi
+        dK = k1 + k2 * (J - 1.0)
+        for i in range(d):
+            g[i] = f[i, 1] + c * S * h[i, 1]
             if has_volume:
-                value += k2 * volume_derivative(sigma, i, -1, -1, -1) * volume_derivative(
-                    sigma, j, -1, -1, -1
-                ) + dK * volume_derivative(sigma, i, j, -1, -1)
-            if i == j:
-                value += f[i, 2] + c * S * h[i, 2]
-            H[i, j] = value
-    if order < 3:
-        return psi
-    for i in range(d):
-        for j in range(d):
-            for k in range(d):
-                value = 0.0
+                g[i] += dK * volume_derivative(sigma, i, -1, -1, -1)
+        if order < 2:
+            return psi
+        for i in range(d):
+            for j in range(d):
+                value = c * h[i, 1] * h[j, 1]
                 if has_volume:
-                    value += k2 * _volume_third(sigma, i, j, k) + dK * volume_derivative(
-                        sigma, i, j, k, -1
-                    )
-                if has_sum:
-                    if i == j:
-                        value += c * h[i, 2] * h[k, 1]
-                    if i == k:
-                        value += c * h[i, 2] * h[j, 1]
-                    if j == k:
-                        value += c * h[j, 2] * h[i, 1]
-                if i == j and j == k:
-                    value += f[i, 3] + c * S * h[i, 3]
-                T[i, j, k] = value
-    if order < 4:
-        return psi
-    for i in range(d):
-        for j in range(d):
-            for k in range(d):
-                for l in range(d):
+                    value += k2 * volume_derivative(sigma, i, -1, -1, -1) * volume_derivative(
+                        sigma, j, -1, -1, -1
+                    ) + dK * volume_derivative(sigma, i, j, -1, -1)
+                if i == j:
+                    value += f[i, 2] + c * S * h[i, 2]
+                H[i, j] = value
+        if order < 3:
+            return psi
+        for i in range(d):
+            for j in range(d):
+                for k in range(d):
                     value = 0.0
-                    # J is multilinear in 3D, so its fourth derivative vanishes.
                     if has_volume:
-                        value += k2 * _volume_fourth(sigma, i, j, k, l)
-                    # Faà di Bruno for c/2 S²: products of derivatives of S, at most two factors.
+                        value += k2 * _volume_third(sigma, i, j, k) + dK * volume_derivative(
+                            sigma, i, j, k, -1
+                        )
                     if has_sum:
-                        if i == k and i == l:
-                            value += c * h[i, 3] * h[j, 1]
-                        if j == k and j == l:
-                            value += c * h[j, 3] * h[i, 1]
-                        if i == j and i == l:
-                            value += c * h[i, 3] * h[k, 1]
-                        if i == j and i == k:
-                            value += c * h[i, 3] * h[l, 1]
-                        if i == k and j == l:
-                            value += c * h[i, 2] * h[j, 2]
-                        if i == l and j == k:
-                            value += c * h[i, 2] * h[j, 2]
-                        if i == j and k == l:
-                            value += c * h[i, 2] * h[k, 2]
-                    if i == j and j == k and k == l:
-                        value += f[i, 4] + c * S * h[i, 4]
-                    Q[i, j, k, l] = value
-    return psi
+                        if i == j:
+                            value += c * h[i, 2] * h[k, 1]
+                        if i == k:
+                            value += c * h[i, 2] * h[j, 1]
+                        if j == k:
+                            value += c * h[j, 2] * h[i, 1]
+                    if i == j and j == k:
+                        value += f[i, 3] + c * S * h[i, 3]
+                    T[i, j, k] = value
+        if order < 4:
+            return psi
+        for i in range(d):
+            for j in range(d):
+                for k in range(d):
+                    for l in range(d):
+                        value = 0.0
+                        # J is multilinear in 3D, so its fourth derivative vanishes.
+                        if has_volume:
+                            value += k2 * _volume_fourth(sigma, i, j, k, l)
+                        # Faà di Bruno for c/2 S²: products of derivatives of S, at most two
+                        # factors.
+                        if has_sum:
+                            if i == k and i == l:
+                                value += c * h[i, 3] * h[j, 1]
+                            if j == k and j == l:
+                                value += c * h[j, 3] * h[i, 1]
+                            if i == j and i == l:
+                                value += c * h[i, 3] * h[k, 1]
+                            if i == j and i == k:
+                                value += c * h[i, 3] * h[l, 1]
+                            if i == k and j == l:
+                                value += c * h[i, 2] * h[j, 2]
+                            if i == l and j == k:
+                                value += c * h[i, 2] * h[j, 2]
+                            if i == j and k == l:
+                                value += c * h[i, 2] * h[k, 2]
+                        if i == j and j == k and k == l:
+                            value += f[i, 4] + c * S * h[i, 4]
+                        Q[i, j, k, l] = value
+        return psi
+
+    return specialised
+
+
+_separable_derivatives_2d = _specialised_separable_derivatives(2)
+_separable_derivatives_3d = _specialised_separable_derivatives(3)
 
 
 @numba.njit(cache=True)
