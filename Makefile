@@ -19,7 +19,10 @@ export OPENBLAS_NUM_THREADS := 1
 
 .PHONY: setup system-packages test test-serial test-mpi test-compat demo bench lint clean clean-cache
 
+# The last step compiles the DOLFINx cell kernels into numba's disk cache (about a minute the
+# first time, a second afterwards), so a user's first assembly does not pay for it.
 setup: system-packages $(VENV)/.installed
+	$(PYTHON) -m dolfinx_invertible compile
 
 # Cheap when nothing is missing: one dpkg-query per package.
 system-packages:

@@ -4,6 +4,8 @@ Commands:
 
 - ``bench <subcommand> ...``: benchmarks, see :mod:`dolfinx_invertible.bench`
   (e.g. ``python -m dolfinx_invertible bench material --points 200000``).
+- ``compile``: compile the DOLFINx cell kernels (2D and 3D) into numba's disk cache, so that
+  the first assembly of a script does not pay for it (``make setup`` runs it).
 """
 
 from __future__ import annotations
@@ -19,8 +21,28 @@ def _bench(argv: Sequence[str]) -> int:
     return bench.main(argv)
 
 
+def _compile(argv: Sequence[str]) -> int:
+    import time
+
+    from dolfinx_invertible import kernels
+
+    if argv:
+        print("usage: python -m dolfinx_invertible compile", file=sys.stderr)
+        return 2
+    start = time.perf_counter()
+    seconds = kernels.precompile()
+    details = ", ".join(
+        f"{kind} {dimension}D {value:.1f} s" for (kind, dimension), value in seconds.items()
+    )
+    print(
+        f"kernels compiled or loaded from the cache in {time.perf_counter() - start:.1f} s "
+        f"({details})"
+    )
+    return 0
+
+
 # name -> handler taking the remaining arguments and returning an exit code.
-COMMANDS: Dict[str, Callable[[Sequence[str]], int]] = {"bench": _bench}
+COMMANDS: Dict[str, Callable[[Sequence[str]], int]] = {"bench": _bench, "compile": _compile}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -336,6 +336,10 @@ SUBCOMMANDS = {
         "peak resident memory of building and one Newton step of a large P1 problem",
         *_module_subcommand("bench_memory"),
     ),
+    "points": (
+        "per-point cost of each kernel stage (SVD, extension, stress, tangent): the profile",
+        *_module_subcommand("bench_points"),
+    ),
 }
 
 

@@ -124,25 +124,32 @@ def _cofactor(F, i, j):
     return F[i1, j1] * F[i2, j2] - F[i1, j2] * F[i2, j1]
 
 
-@numba.njit(cache=True)
-def _cholesky_positive(C):
-    """Cholesky of the symmetric ``C`` (read, not written) succeeds with positive pivots."""
-    n = C.shape[0]
-    factor = numba.carray(ws.stack_array(81), (9, 9))
-    for j in range(n):
-        pivot = C[j, j]
-        for k in range(j):
-            pivot -= factor[j, k] * factor[j, k]
-        if not pivot > 0.0:
-            return False
-        root = np.sqrt(pivot)
-        factor[j, j] = root
-        for i in range(j + 1, n):
-            value = C[i, j]
+def _specialised_cholesky_positive(n: int):
+    """Cholesky of a symmetric n×n matrix (read, not written) succeeds with positive pivots."""
+
+    @numba.njit(cache=True)
+    def positive(C):
+        factor = numba.carray(ws.stack_array(81), (9, 9))
+        for j in range(n):
+            pivot = C[j, j]
             for k in range(j):
-                value -= factor[i, k] * factor[j, k]
-            factor[i, j] = value / root
-    return True
+                pivot -= factor[j, k] * factor[j, k]
+            if not pivot > 0.0:
+                return False
+            root = np.sqrt(pivot)
+            factor[j, j] = root
+            for i in range(j + 1, n):
+                value = C[i, j]
+                for k in range(j):
+                    value -= factor[i, k] * factor[j, k]
+                factor[i, j] = value / root
+        return True
+
+    return positive
+
+
+_cholesky_positive_2d = _specialised_cholesky_positive(4)
+_cholesky_positive_3d = _specialised_cholesky_positive(9)
 
 
 @numba.njit(cache=True)
@@ -242,8 +249,10 @@ def _specialised_invariant_tangent(d: int):
                         C[row, i2 * 3 + j2] += dJ * F[i1, j1]
                         C[row, i1 * 3 + j2] -= dJ * F[i2, j1]
                         C[row, i2 * 3 + j1] -= dJ * F[i1, j2]
-        if project and not _cholesky_positive(C):
-            return False, 0.0, 0
+        if project:
+            positive = _cholesky_positive_3d(C) if d == 3 else _cholesky_positive_2d(C)
+            if not positive:
+                return False, 0.0, 0
         return True, psi, 0
 
     return tangent

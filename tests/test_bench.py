@@ -15,6 +15,7 @@ from dolfinx_invertible import (
     bench_assembly,
     bench_compile,
     bench_memory,
+    bench_points,
     bench_scaling,
     bench_solve,
 )
@@ -84,3 +85,16 @@ def test_scaling_and_memory_in_child_processes():
     peaks = [memory["peak_rss_bytes_total"][name] for name in bench_memory.STAGES]
     assert peaks == sorted(peaks) and peaks[0] > 0  # ru_maxrss never decreases
     assert bench_memory.table(memory)
+
+
+def test_points_report_covers_every_stage_and_the_paths_taken():
+    report = bench_points.run(points=200, repeats=1)
+    json.dumps(report)
+    fast, extension = (report["stages"][state] for state in bench_points.STRETCHES)
+    assert set(fast) == set(extension)
+    assert all(entry["nanoseconds_per_point"] > 0.0 for entry in fast.values())
+    # Away from the threshold energy and stress never need the SVD; inside it they always do.
+    for stage in ("point energy", "point stress", "point tangent, exact"):
+        assert fast[stage]["svd_share"] == 0.0
+        assert extension[stage]["svd_share"] == 1.0
+    assert bench_points.table(report)
