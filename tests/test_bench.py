@@ -66,7 +66,9 @@ def test_compile_first_assembly_is_reproducible():
     phases, first = bench_compile.first_assembly(cells=3)
     _, second = bench_compile.first_assembly(cells=3)
     assert list(phases) == ["python_started", "imported", "forms_built", "assembled"]
-    assert bench_compile.relative_difference(first, second) == 0.0
+    # Two meshes built one after the other may be partitioned differently under MPI, which
+    # changes the order of the ghost sums: equal to round-off, not bitwise.
+    assert bench_compile.relative_difference(first, second) <= 1.0e-12
 
 
 def test_memory_measurement():
