@@ -99,3 +99,14 @@ def test_solve_reports_svd_share():
     again = problem.solve()
     assert again.converged
     assert again.svd_share == {"energy": 1.0, "residual": 1.0, "tangent": 1.0}
+
+
+def test_kernel_requests_are_checked():
+    from dolfinx_invertible import kernels
+
+    with pytest.raises(ValueError, match="kind must be one of"):
+        kernels.kernel_address("mass", 3)
+    with pytest.raises(ValueError, match="dimension 1"):
+        kernels.kernel_address("residual", 1)
+    # Compiled once per (kind, dimension): the same address every time.
+    assert kernels.kernel_address("residual", 3) == kernels.kernel_address("residual", 3)
