@@ -103,15 +103,14 @@ class HyperelasticForms:
         self.constants = dolfinx.fem.Constant(
             mesh, kernels.pack_constants(self.tables, gdim, material, self.project, self.counters)
         )
-        self._dimension = gdim
         self._forms: dict[str, object] = {}
 
     def _form(self, kind: str, spaces: list):
         # Built, and its kernel compiled, on first use only: a scene without a line search or an
         # energy report never compiles the energy kernel.
         if kind not in self._forms:
-            address = kernels.kernel_address(kind, self._dimension)
             mesh = self.u.function_space.mesh
+            address = kernels.kernel_address(kind, mesh.geometry.dim)
             self._forms[kind] = _compat.custom_form(
                 spaces, address, [self.u], [self.constants], mesh
             )

@@ -247,9 +247,10 @@ KERNEL_SCRATCH = _CONTRACTED + 9 * 3 * _MAX_NODES
 
 
 @numba.njit(cache=True)
-def _cell_layout(c_, w_, coordinates_, d, nodes):
-    """Views of the kernel inputs for dimension ``d`` and ``nodes`` nodes per cell."""
+def _cell_layout(c_, w_, coordinates_, d):
+    """Views of the kernel inputs for dimension ``d``, and the element sizes."""
     header = numba.carray(c_, HEADER)
+    nodes = int(header[1])
     points = int(header[2])
     geometry_nodes = int(header[3])
     total = HEADER + PARAMETER_COUNT + points * (1 + (nodes + geometry_nodes) * d)
@@ -258,7 +259,7 @@ def _cell_layout(c_, w_, coordinates_, d, nodes):
     geometry_start = start + points * nodes * d
     displacement = numba.carray(w_, nodes * d)
     coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
-    return c, points, start, geometry_start, displacement, coordinates
+    return c, nodes, points, start, geometry_start, displacement, coordinates
 
 
 @numba.njit(cache=True)
@@ -280,8 +281,10 @@ def _point_geometry(c, q, start, geometry_start, coordinates, displacement, scra
 
 
 @numba.njit(cache=True)
-def _switches(c):
-    return int(c[4]), int(c[5]), c[6] != 0.0, c[PROJECT_SLOT] != 0.0
+def _material(c):
+    """(parameters, model id, extension id, positive_only, project) from the constants."""
+    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    return params, int(c[4]), int(c[5]), c[6] != 0.0, c[PROJECT_SLOT] != 0.0
 
 
 # The cell functions are compiled per dimension, a literal constant (numba.literally), so the
@@ -292,12 +295,10 @@ def _switches(c):
 def cell_energy(A_, w_, c_, coordinates_, d):
     """Cell energy ∫Ψ(F) dX."""
     numba.literally(d)
-    nodes = int(c_[1])
-    c, points, start, geometry_start, displacement, coordinates = _cell_layout(
-        c_, w_, coordinates_, d, nodes
+    c, nodes, points, start, geometry_start, displacement, coordinates = _cell_layout(
+        c_, w_, coordinates_, d
     )
-    model_id, extension_id, positive_only, _ = _switches(c)
-    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    params, model_id, extension_id, positive_only, _ = _material(c)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     total = 0.0
@@ -317,12 +318,10 @@ def cell_energy(A_, w_, c_, coordinates_, d):
 def cell_residual(A_, w_, c_, coordinates_, d):
     """Cell residual ∫ P : ∇φ dX."""
     numba.literally(d)
-    nodes = int(c_[1])
-    c, points, start, geometry_start, displacement, coordinates = _cell_layout(
-        c_, w_, coordinates_, d, nodes
+    c, nodes, points, start, geometry_start, displacement, coordinates = _cell_layout(
+        c_, w_, coordinates_, d
     )
-    model_id, extension_id, positive_only, _ = _switches(c)
-    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    params, model_id, extension_id, positive_only, _ = _material(c)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     P = numba.carray(ws.address(scratch, _STRESS), (d, d))
@@ -347,12 +346,10 @@ def cell_residual(A_, w_, c_, coordinates_, d):
 def cell_tangent(A_, w_, c_, coordinates_, d):
     """Cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
     numba.literally(d)
-    nodes = int(c_[1])
-    c, points, start, geometry_start, displacement, coordinates = _cell_layout(
-        c_, w_, coordinates_, d, nodes
+    c, nodes, points, start, geometry_start, displacement, coordinates = _cell_layout(
+        c_, w_, coordinates_, d
     )
-    model_id, extension_id, positive_only, project = _switches(c)
-    params = c[HEADER : HEADER + PARAMETER_COUNT]
+    params, model_id, extension_id, positive_only, project = _material(c)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     n = d * d

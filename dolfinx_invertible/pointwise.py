@@ -34,18 +34,23 @@ _TANGENT = np.array([2])[0]
 
 
 @numba.njit(cache=True)
+def _through_svd(F, model_id, extension_id, positive_only, params, order, work):
+    """The SVD path: U, σ, V into the workspace, then Ψ̂ext(σ) with derivatives up to
+    ``order`` into the G, H slots; returns (Ψ, region)."""
+    d = F.shape[0]
+    sigma = ws.vector(work, ws.SIGMA, d)
+    polar_svd_point(F, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
+    return principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work)
+
+
+@numba.njit(cache=True)
 def point_energy(F, model_id, extension_id, positive_only, params, work):
     """(Ψ(F), region, through_svd); ``work`` is a workspace buffer (see
     :mod:`~dolfinx_invertible.workspace`), ``through_svd`` says whether the SVD path was taken."""
     done, psi, region = invariant_energy(F, model_id, extension_id, positive_only, params)
     if done:
         return psi, region, False
-    d = F.shape[0]
-    sigma = ws.vector(work, ws.SIGMA, d)
-    polar_svd_point(F, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
-    psi, region = principal_derivatives(
-        model_id, extension_id, positive_only, sigma, params, _ENERGY, work
-    )
+    psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _ENERGY, work)
     return psi, region, True
 
 
@@ -55,15 +60,9 @@ def point_stress(F, model_id, extension_id, positive_only, params, work, P):
     done, psi, region = invariant_stress(F, model_id, extension_id, positive_only, params, P)
     if done:
         return psi, region, False
+    psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _STRESS, work)
     d = F.shape[0]
-    sigma = ws.vector(work, ws.SIGMA, d)
-    U = ws.matrix(work, ws.U, d)
-    V = ws.matrix(work, ws.V, d)
-    polar_svd_point(F, U, sigma, V)
-    psi, region = principal_derivatives(
-        model_id, extension_id, positive_only, sigma, params, _STRESS, work
-    )
-    first_piola(U, ws.vector(work, ws.G, d), V, P)
+    first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
     return psi, region, True
 
 
@@ -76,15 +75,10 @@ def point_tangent(F, model_id, extension_id, positive_only, params, project, wor
     )
     if done:
         return psi, region, False
+    psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _TANGENT, work)
     d = F.shape[0]
     sigma = ws.vector(work, ws.SIGMA, d)
-    U = ws.matrix(work, ws.U, d)
-    V = ws.matrix(work, ws.V, d)
-    polar_svd_point(F, U, sigma, V)
-    psi, region = principal_derivatives(
-        model_id, extension_id, positive_only, sigma, params, _TANGENT, work
-    )
-    first_piola(U, ws.vector(work, ws.G, d), V, P)
+    first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
     if region == UNDEFINED_REGION:
         C[:, :] = 0.0
     else:

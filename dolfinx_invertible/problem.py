@@ -182,11 +182,15 @@ class HyperelasticProblem:
         """
         self.forms.reset_path_counts()
         result = self._solve()
-        comm = self.u.function_space.mesh.comm
-        shares = {}
-        for kind, (points, svd_points) in self.forms.path_counts().items():
-            points, svd_points = comm.allreduce(np.array([points, svd_points]), op=MPI.SUM)
-            shares[kind] = float(svd_points / points) if points > 0 else None
+        counts = self.forms.path_counts()
+        # One reduction for all kernels: rows (points, points through the SVD).
+        totals = self.u.function_space.mesh.comm.allreduce(
+            np.array(list(counts.values())), op=MPI.SUM
+        )
+        shares = {
+            kind: float(svd_points / points) if points > 0 else None
+            for kind, (points, svd_points) in zip(counts, totals)
+        }
         return dataclasses.replace(result, svd_share=shares)
 
     def _solve(self) -> SolveResult:
