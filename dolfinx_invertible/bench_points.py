@@ -131,7 +131,7 @@ def run(points: int, repeats: int) -> dict:
             for name, values in samples.items()
         }
     report["stages"] = results
-    report["load_average_after"] = list(os.getloadavg())
+    report["machine"]["load_average_after"] = list(os.getloadavg())
     return report
 
 
@@ -142,7 +142,7 @@ def table(report: dict) -> str:
         f"per-point stages, Neo-Hookean + C2 (eps 0.9), 3D, {report['points']} points, medians "
         f"of {report['repeats']} interleaved repeats, load average "
         f"{report['machine']['load_average'][0]:.2f} before, "
-        f"{report['load_average_after'][0]:.2f} after",
+        f"{report['machine']['load_average_after'][0]:.2f} after",
         f"{'stage':28s}" + "".join(f"{state:>34s}" for state in states),
     ]
     for name in report["stages"][states[0]]:
