@@ -67,6 +67,7 @@ bench: setup
 	$(PYTHON) -m dolfinx_invertible bench material
 	mkdir -p $(BENCH_JSON)
 	$(PYTHON) -m dolfinx_invertible bench assembly --json $(BENCH_JSON)/assembly.json
+	$(PYTHON) -m dolfinx_invertible bench points --json $(BENCH_JSON)/points.json
 	$(PYTHON) -m dolfinx_invertible bench solve --json $(BENCH_JSON)/solve.json
 	$(PYTHON) -m dolfinx_invertible bench scaling --json $(BENCH_JSON)/scaling.json
 	$(PYTHON) -m dolfinx_invertible bench memory --json $(BENCH_JSON)/memory.json
