@@ -17,12 +17,25 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMP_NUM_THREADS := 1
 export OPENBLAS_NUM_THREADS := 1
 
-.PHONY: setup system-packages test test-serial test-mpi test-compat demo bench lint clean clean-cache
+RUFF_VERSION := 0.17.6
+
+.PHONY: setup system-packages test test-serial test-mpi test-compat demo bench lint clean clean-cache \
+	numba-cache-key
 
 # The last step compiles the DOLFINx cell kernels into numba's disk cache (about a minute the
 # first time, a second afterwards), so a user's first assembly does not pay for it.
-setup: system-packages $(VENV)/.installed
+setup: system-packages $(VENV)/.installed numba-cache-key
 	$(PYTHON) -m dolfinx_invertible compile
+
+# numba's disk cache is checked against each function's own file only, not against the files of
+# the functions it calls (nor against a file's new place after a move): whenever any source file
+# of the package changed, drop the whole cache before anything loads from it.
+NUMBA_CACHE_KEY := $(VENV)/.numba-source-key
+numba-cache-key: | $(VENV)/.installed
+	@key=$$(find dolfinx_invertible -name '*.py' -print0 | sort -z | xargs -0 sha256sum | sha256sum); \
+	if [ "$$key" != "$$(cat $(NUMBA_CACHE_KEY) 2>/dev/null)" ]; then \
+	  $(MAKE) --no-print-directory clean-cache; echo "$$key" > $(NUMBA_CACHE_KEY); \
+	fi
 
 # Cheap when nothing is missing: one dpkg-query per package.
 system-packages:
@@ -41,18 +54,20 @@ $(VENV)/.installed: pyproject.toml | system-packages
 	$(PYTHON) -m pip install -q --no-deps --no-build-isolation --config-settings editable_mode=compat -e .
 	touch $@
 
-test: test-serial test-mpi
+test: lint test-serial test-mpi
 
 test-serial: setup
 	$(PYTHON) -m pytest -q
 
+# Under MPI only the tests marked `mpi` are collected (tests/conftest.py).
 test-mpi: setup
 	$(MPIEXEC) -n 2 $(PYTHON) -m pytest $(PYTEST_MPI)
 	$(MPIEXEC) -n 3 --oversubscribe $(PYTHON) -m pytest $(PYTEST_MPI)
 
 # The suite on every supported DOLFINx: the host's 0.5.2, Debian trixie's 0.9 and the PyPI 0.11
-# wheel (the last two in a debootstrap root under build/, made on first use); writes the README's
-# "Supported DOLFINx versions" table. Needs root (debootstrap, chroot, mounts).
+# wheel (the last two in a debootstrap root under build/, made on first use; the wheel lane tests
+# the installed package); writes the table in docs/compatibility.md. Needs root (debootstrap,
+# chroot, mounts).
 test-compat: setup
 	tools/compat/run.sh
 
@@ -73,14 +88,16 @@ bench: setup
 	$(PYTHON) -m dolfinx_invertible bench memory --json $(BENCH_JSON)/memory.json
 	$(PYTHON) -m dolfinx_invertible bench compile --race-repeats 1 --json $(BENCH_JSON)/compile.json
 
-lint: setup
-	$(PYTHON) -m pip install -q ruff
+lint: $(VENV)/.installed
+	[ "$$($(VENV)/bin/ruff --version 2>/dev/null)" = "ruff $(RUFF_VERSION)" ] || \
+	  $(PYTHON) -m pip install -q ruff==$(RUFF_VERSION)
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
 
 # numba's disk cache is keyed on each function's own file, not on the functions it calls: after
 # editing the package, drop it so nothing stale gets loaded.
 clean-cache:
 	find dolfinx_invertible -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -f $(NUMBA_CACHE_KEY)
 
 clean: clean-cache
 	rm -rf $(VENV) output *.egg-info

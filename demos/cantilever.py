@@ -1,7 +1,7 @@
 """README example: a cantilever under a UFL tip traction (kept identical to the README)."""
 
 # mpi4py before dolfinx: the PyPI DOLFINx wheel loads its MPI library through mpi4py.
-from mpi4py import MPI  # isort: skip
+from mpi4py import MPI
 
 import dolfinx
 import numpy as np
@@ -13,17 +13,17 @@ from dolfinx_invertible import (
     Material,
     NeoHookean,
     ResultWriter,
-    _compat,
     cell_diagnostics,
     lame,
     solve_load_steps,
+    summary,
+    vector_function_space,
 )
-from dolfinx_invertible.diagnostics import summary
 
 # Your mesh, space, boundary conditions and load terms, as in any DOLFINx script.
 mesh = dolfinx.mesh.create_box(MPI.COMM_WORLD, [[0, 0, 0], [1, 0.2, 0.2]], [20, 4, 4])
-# _compat: the same call on every supported DOLFINx (VectorFunctionSpace became functionspace).
-V = _compat.vector_function_space(mesh, "Lagrange", 1)
+# The same call on every supported DOLFINx (VectorFunctionSpace became functionspace in 0.7).
+V = vector_function_space(mesh, 1)
 u = dolfinx.fem.Function(V, name="displacement")
 clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
 bc = dolfinx.fem.dirichletbc(np.zeros(3), dolfinx.fem.locate_dofs_topological(V, 2, clamped), V)

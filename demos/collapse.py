@@ -26,16 +26,24 @@ import sys
 import time
 
 # mpi4py before dolfinx: the PyPI DOLFINx wheel loads its MPI library through mpi4py.
-from mpi4py import MPI  # isort: skip
+from mpi4py import MPI
 
 import dolfinx
 import numpy as np
 
-from dolfinx_invertible import C2, IFE, Material, NeoHookean, _compat, lame
-from dolfinx_invertible.diagnostics import cell_diagnostics, summary
-from dolfinx_invertible.dynamics import ImplicitDynamics
-from dolfinx_invertible.output import ResultWriter
-from dolfinx_invertible.solver import SolverError
+from dolfinx_invertible import (
+    C2,
+    IFE,
+    ImplicitDynamics,
+    Material,
+    NeoHookean,
+    ResultWriter,
+    SolverError,
+    cell_diagnostics,
+    lame,
+    summary,
+    vector_function_space,
+)
 
 OUTPUT = pathlib.Path(__file__).resolve().parent.parent / "output" / "collapse"
 
@@ -56,7 +64,7 @@ def initial_displacement(scene: str, scale: float):
 
 def run(scene, extension, arguments, comm) -> dict:
     mesh = dolfinx.mesh.create_unit_cube(comm, arguments.cells, arguments.cells, arguments.cells)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(vector_function_space(mesh, 1))
     u.interpolate(initial_displacement(scene, arguments.scale))
     mu, lam = lame(arguments.youngs_modulus, arguments.nu)
     material = Material(NeoHookean(mu=mu, lam=lam), extension)

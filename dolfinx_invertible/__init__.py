@@ -3,47 +3,70 @@
 Implements Stomakhin, Howes, Schroeder and Teran, "Energetically Consistent Invertible
 Elasticity" (SCA 2012): C1 and C2 extensions of isotropic energies past an inversion threshold,
 with the first Piola–Kirchhoff stress and an SPD-projected tangent from a polar SVD.
+
+The batch API (:class:`Material`, the models and extensions, :func:`lame`, :func:`polar_svd`)
+needs only NumPy and numba. The DOLFINx layer (forms, problems, solvers, output) is imported on
+first use of one of its names, so the batch API never loads DOLFINx.
 """
 
-from dolfinx_invertible.extensions import C1, C2, IFE, Extension
-from dolfinx_invertible.material import Material, NoEnergyError
-from dolfinx_invertible.models import (
+import importlib
+import importlib.metadata
+
+from dolfinx_invertible.constitutive import (
     ARAP,
+    C1,
+    C2,
+    IFE,
     Corotated,
+    Extension,
     FixedCorotated,
+    Material,
     Model,
     NeoHookean,
+    NoEnergyError,
     StableNeoHookean,
     StVK,
+    lame,
+    polar_svd,
 )
-from dolfinx_invertible.parameters import lame
-from dolfinx_invertible.svd import polar_svd
 
-__version__ = "0.1.0"
+try:
+    __version__ = importlib.metadata.version("dolfinx_invertible")
+except importlib.metadata.PackageNotFoundError:  # a source tree on PYTHONPATH, not installed
+    __version__ = "0+unknown"
 
-# The DOLFINx layer is imported on first use, so the batch API works without loading DOLFINx.
+# name -> module that defines it; imported on first access.
 _LAZY = {
-    "HyperelasticForms": "dolfinx_invertible.forms",
-    "HyperelasticProblem": "dolfinx_invertible.problem",
-    "ImplicitDynamics": "dolfinx_invertible.dynamics",
-    "NewtonSolver": "dolfinx_invertible.solver",
-    "SolverError": "dolfinx_invertible.solver",
-    "solve_load_steps": "dolfinx_invertible.solver",
-    "ResultWriter": "dolfinx_invertible.output",
-    "cell_diagnostics": "dolfinx_invertible.diagnostics",
+    "HyperelasticForms": "dolfinx_invertible.fem.forms",
+    "cell_diagnostics": "dolfinx_invertible.fem.diagnostics",
+    "summary": "dolfinx_invertible.fem.diagnostics",
+    "vector_function_space": "dolfinx_invertible.fem.spaces",
+    "scalar_function_space": "dolfinx_invertible.fem.spaces",
+    "HyperelasticProblem": "dolfinx_invertible.solvers.hyperelastic",
+    "ImplicitDynamics": "dolfinx_invertible.solvers.dynamics",
+    "EnergyMinimizer": "dolfinx_invertible.solvers.newton",
+    "EnergyProblem": "dolfinx_invertible.solvers.problem",
+    "InversionFreeStep": "dolfinx_invertible.solvers.step_limit",
+    "SolveResult": "dolfinx_invertible.solvers.results",
+    "SolverError": "dolfinx_invertible.solvers.results",
+    "solve_load_steps": "dolfinx_invertible.solvers.stepping",
+    "ResultWriter": "dolfinx_invertible.io.xdmf",
 }
 
 
 def __getattr__(name: str):
+    """Import a name of the DOLFINx layer on first use."""
     if name in _LAZY:
-        import importlib
-
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'dolfinx_invertible' has no attribute {name!r}")
 
 
+def __dir__() -> list[str]:
+    """List the public names, the lazily imported ones included."""
+    return sorted(__all__)
+
+
 __all__ = [
-    *_LAZY,
     "ARAP",
     "C1",
     "C2",
@@ -59,4 +82,5 @@ __all__ = [
     "StableNeoHookean",
     "lame",
     "polar_svd",
+    *_LAZY,
 ]

@@ -72,7 +72,7 @@ def scalar_function_space(mesh, family: str, degree: int):
 
 
 def petsc_vector(function):
-    """The PETSc vector wrapping a Function's dofs (ghosted)."""
+    """Return the PETSc vector wrapping a Function's dofs (ghosted)."""
     if DOLFINX_VERSION < (0, 8):
         return function.vector
     return function.x.petsc_vec
@@ -95,7 +95,7 @@ XDMF_XINCLUDE_NAMESPACE = (
 
 
 def xdmf_file(comm, path, mode: str = "w"):
-    """An XDMF file (``mode`` "w" or "r")."""
+    """Return an XDMF file (``mode`` "w" or "r")."""
     return dolfinx.io.XDMFFile(comm, str(path), mode)
 
 
@@ -108,7 +108,7 @@ def _cpp_object(wrapper):
 
 
 def custom_form(spaces, kernel_address: int, coefficients, constants, mesh):
-    """A DOLFINx Form over all cells whose cell integral is a custom kernel.
+    """Return a DOLFINx Form over all cells whose cell integral is a custom kernel.
 
     ``spaces`` are Python FunctionSpaces (none for a functional), ``coefficients`` Functions and
     ``constants`` Constants, in the order the kernel reads them.
@@ -179,7 +179,7 @@ def element_degree(space) -> int:
 
 
 def basix_element(space):
-    """The scalar Basix element of a (blocked) Lagrange space."""
+    """Return the scalar Basix element of a (blocked) Lagrange space."""
     return space.element.basix_element
 
 
@@ -192,7 +192,7 @@ def cell_dofs(space) -> np.ndarray:
 
 
 def create_vector(form):
-    """A ghosted PETSc vector laid out like the test space of a linear form."""
+    """Return a ghosted PETSc vector laid out like the test space of a linear form."""
     import dolfinx.fem.petsc
 
     if DOLFINX_VERSION < (0, 11):
@@ -202,15 +202,16 @@ def create_vector(form):
 
 
 def create_matrix(form):
-    """A PETSc matrix with the sparsity pattern of a bilinear form."""
+    """Return a PETSc matrix with the sparsity pattern of a bilinear form."""
     import dolfinx.fem.petsc
 
     return dolfinx.fem.petsc.create_matrix(form)
 
 
 def assemble_matrix_into(matrix, form, bcs, diagonal: float) -> None:
-    """Add a bilinear form to ``matrix``, zeroing Dirichlet rows and columns and putting
-    ``diagonal`` on the Dirichlet diagonal; ends with a flush so another form can be added.
+    """Add a bilinear form to ``matrix``, then flush it so that another form can be added.
+
+    Dirichlet rows and columns are zeroed and ``diagonal`` goes on the Dirichlet diagonal.
 
     The flush is not optional: DOLFINx inserts the diagonal with INSERT_VALUES, and a later
     ADD_VALUES without a flush in between is an error that release builds of DOLFINx 0.5 ignore
@@ -282,6 +283,6 @@ def geometry_dofmap(mesh) -> np.ndarray:
 
 
 def boundary_condition_dof_count(bc) -> int:
-    """Number of dofs a DirichletBC constrains that this rank owns."""
+    """Return number of dofs a DirichletBC constrains that this rank owns."""
     _, owned = bc.dof_indices()
     return int(owned)

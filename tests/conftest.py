@@ -1,49 +1,43 @@
-"""Pytest configuration: serial-only tests and shared fixtures.
+"""Pytest configuration shared by every test folder.
 
-The `serial` marker itself is registered in pyproject.toml.
+Under MPI (more than one rank) only the tests marked ``mpi`` are collected: the others check
+nothing that a parallel run would add, and deselecting them keeps the parallel report short.
 """
 
-import numpy as np
 import pytest
 
-# Before any test module imports dolfinx: _compat readies the platform (on the PyPI DOLFINx wheel,
-# its MPI library must be loaded first). Hence also no import of helpers (and dolfinx) up here.
-import dolfinx_invertible._compat  # noqa: F401
+try:
+    # Before any test module imports dolfinx: _compat readies the platform (on the PyPI DOLFINx
+    # wheel its MPI library must be loaded first). The constitutive tests run without DOLFINx.
+    import dolfinx_invertible._compat  # noqa: F401
+except ImportError:
+    pass
 
 
-def _comm_size():
-    from mpi4py import MPI
-
+def _comm_size() -> int:
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        return 1
     return MPI.COMM_WORLD.size
 
 
 def pytest_collection_modifyitems(config, items):
+    """Deselect the tests not marked ``mpi`` when running on more than one rank."""
     if _comm_size() <= 1:
         return
-    skip = pytest.mark.skip(reason="makes no sense in parallel")
-    for item in items:
-        if item.get_closest_marker("serial") is not None:
-            item.add_marker(skip)
+    selected = [item for item in items if item.get_closest_marker("mpi") is not None]
+    deselected = [item for item in items if item.get_closest_marker("mpi") is None]
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+        items[:] = selected
 
 
 @pytest.fixture
-def rng(request):
-    """A numpy Generator seeded from the test id, so each test is reproducible on its own."""
-    seed = sum(ord(c) * (i + 1) for i, c in enumerate(request.node.nodeid)) % (2**32)
-    return np.random.default_rng(seed)
+def directory(tmp_path_factory):
+    """One directory shared by all ranks (rank 0's temporary directory)."""
+    from mpi4py import MPI
 
-
-@pytest.fixture
-def rotation():
-    """random_rotation(rng, d): Haar-random rotation with det +1."""
-    from helpers import random_rotation
-
-    return random_rotation
-
-
-@pytest.fixture
-def with_sigma():
-    """with_sigma(rng, sigma): random F = R1 diag(sigma) R2^T for each row of signed sigma."""
-    from helpers import matrices_with_sigma
-
-    return matrices_with_sigma
+    comm = MPI.COMM_WORLD
+    path = tmp_path_factory.mktemp("output") if comm.rank == 0 else None
+    return comm.bcast(path, root=0)

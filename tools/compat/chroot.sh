@@ -14,9 +14,18 @@ compat_mount() {
   fi
 }
 
+# Read-only bind mounts made inside the root (deepest first when unmounting).
+compat_readonly_mounts=()
+
 # Unmount whatever of ours is mounted, deepest first; safe to call any number of times.
 compat_unmount_all() {
   local root=$1 target
+  for target in "${compat_readonly_mounts[@]}"; do
+    if mountpoint -q "$target" 2>/dev/null; then
+      umount "$target" || umount -l "$target"
+    fi
+  done
+  compat_readonly_mounts=()
   for target in repo dev/shm sys proc; do
     if mountpoint -q "$root/$target" 2>/dev/null; then
       umount "$root/$target" || umount -l "$root/$target"

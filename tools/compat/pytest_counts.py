@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import os
 
-OUTCOMES = ("passed", "failed", "error", "skipped", "xfailed", "xpassed")
+OUTCOMES = ("passed", "failed", "error", "skipped", "deselected", "xfailed", "xpassed")
 
 
 def _rank() -> int:

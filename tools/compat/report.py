@@ -1,10 +1,10 @@
-"""Collect the compat lanes' results into results.json and the README's version table.
+"""Collect the compat lanes' results into results.json and the versions table of the docs.
 
-Usage: python3 report.py RESULTS_DIR RESULTS_JSON README LANE...
+Usage: python3 report.py RESULTS_DIR RESULTS_JSON MARKDOWN LANE...
 
 RESULTS_DIR holds what run.sh left per lane: ``<lane>.versions.json``, and per mode (serial,
 mpi) ``<lane>-<mode>.status.json`` and the per-rank pytest counts ``<lane>-<mode>.counts.<rank>``.
-The README is rewritten between the supported-versions markers only.
+MARKDOWN (docs/compatibility.md) is rewritten between the supported-versions markers only.
 """
 
 from __future__ import annotations
@@ -19,10 +19,11 @@ END = "<!-- supported-versions:end -->"
 INSTALLED_FROM = {
     "host": "Debian bookworm `python3-dolfinx-real` (apt, the host)",
     "trixie": "Debian trixie `python3-dolfinx-real` (apt, in a debootstrap root)",
-    "wheel": "PyPI wheel `dolfinx-solver-real` + `numba` (pip, venv on trixie's Python)",
+    "wheel": "PyPI wheel `dolfinx-solver-real` + `numba` (pip, venv on trixie's Python); "
+    "this package installed from its built wheel, read-only",
 }
 MODES = {"serial": "serial", "mpi": "mpiexec -n 2"}
-SHOWN = ("passed", "failed", "error", "skipped")
+SHOWN = ("passed", "failed", "error", "skipped", "deselected")
 
 
 def _mode_result(folder: pathlib.Path, lane: str, mode: str) -> dict:
@@ -52,7 +53,7 @@ def _counts_text(mode_result: dict) -> str:
     ranks = list(mode_result["ranks"].values())
     if not ranks:
         return f"no pytest summary (exit status {mode_result['exitstatus']})"
-    texts = {", ".join(f"{counts[key]} {key}" for key in SHOWN) for counts in ranks}
+    texts = {", ".join(f"{counts.get(key, 0)} {key}" for key in SHOWN) for counts in ranks}
     text = " / ".join(sorted(texts)) + (" per rank" if len(ranks) > 1 else "")
     return f"{text} ({mode_result['seconds']} s)"
 
@@ -92,7 +93,7 @@ def _table(lanes: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(folder: str, results_json: str, readme: str, *lane_names: str) -> None:
+def main(folder: str, results_json: str, markdown: str, *lane_names: str) -> None:
     folder_path = pathlib.Path(folder)
     today = datetime.datetime.now(datetime.timezone.utc).date().isoformat()
     lanes = []
@@ -120,11 +121,11 @@ def main(folder: str, results_json: str, readme: str, *lane_names: str) -> None:
     merged.sort(key=lambda lane: order.index(lane["lane"]))
     path.write_text(json.dumps({"lanes": merged}, indent=2) + "\n")
 
-    readme_path = pathlib.Path(readme)
-    text = readme_path.read_text()
+    markdown_path = pathlib.Path(markdown)
+    text = markdown_path.read_text()
     start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
     table = _table(merged)
-    readme_path.write_text(text[:start] + "\n" + table + "\n" + text[end:])
+    markdown_path.write_text(text[:start] + "\n" + table + "\n" + text[end:])
     for lane in lanes:
         print(f"{lane['lane']}: {lane['result']}")
 

@@ -3,7 +3,10 @@
 #   host    Debian bookworm's python3-dolfinx-real 0.5.2 (the repo's .venv; `make setup` first)
 #   trixie  Debian trixie's python3-dolfinx-real 0.9, in a debootstrap root
 #   wheel   the PyPI wheel dolfinx-solver-real 0.11, in a venv on the trixie root's Python
-# then record the counts in tools/compat/results.json and the README table.
+# then record the counts in tools/compat/results.json and the table in docs/compatibility.md.
+# The host and trixie lanes test the source tree; the wheel lane tests this package installed
+# from its built wheel into the venv's site-packages, mounted read-only (as for a user whose
+# site-packages is not writable: numba then caches in ~/.cache/numba).
 #
 # Environment: COMPAT_LANES (default "host trixie wheel"), COMPAT_ROOT (default
 # build/compat/trixie). Exits non-zero if any run failed, after recording all of them.
@@ -65,9 +68,14 @@ run_pytest() {
       else
         [ "$mode" = mpi ] && launcher=(mpirun -n 2)
       fi
+      local source_env=(NUMBA_CACHE_DIR="$(numba_cache "$lane")" PYTHONPATH=/repo:/repo/tools/compat)
+      if [ "$lane" = wheel ]; then
+        # PYTHONSAFEPATH (inherited by child processes): the working directory /repo stays off
+        # sys.path, so the installed copy is imported; numba picks its own cache folder.
+        source_env=(PYTHONSAFEPATH=1 PYTHONPATH=/repo/tools/compat)
+      fi
       COMPAT_CWD=/repo compat_chroot "$root" "${common_env[@]}" "${lane_env[@]}" \
-        COMPAT_COUNTS="/repo/${counts#"$repo/"}" NUMBA_CACHE_DIR="$(numba_cache "$lane")" \
-        PYTHONPATH=/repo:/repo/tools/compat \
+        COMPAT_COUNTS="/repo/${counts#"$repo/"}" "${source_env[@]}" \
         timeout "$run_timeout" "${launcher[@]}" "$python" -m pytest "${pytest_flags[@]}"
       ;;
   esac
@@ -103,9 +111,46 @@ print(json.dumps({"dolfinx": dolfinx.__version__, "python": platform.python_vers
 }
 
 wheel_venv=/opt/dolfinx-wheel
+site_packages=$(compat_chroot "$root" "$wheel_venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+
+# install_wheel: build this package's wheel from a copy of the tree (nothing is built inside the
+# repository), install it into the wheel venv (not editable), and mount the installed package
+# read-only; checks that the tests will import it from there.
+install_wheel() {
+  local stage=$root/tmp/compat-source
+  rm -rf "$stage" && mkdir -p "$stage"
+  (cd "$repo" && tar -cf - --exclude=__pycache__ pyproject.toml README.md dolfinx_invertible) |
+    tar -xf - -C "$stage"
+  compat_chroot "$root" PIP_CERT=/usr/local/share/compat-host-ca/ca-certificates.crt \
+    "$wheel_venv/bin/pip" install -q --no-deps --force-reinstall /tmp/compat-source
+  local installed=$root$site_packages/dolfinx_invertible
+  mount --bind "$installed" "$installed"
+  mount -o remount,bind,ro "$installed"
+  compat_readonly_mounts+=("$installed")
+  rm -rf "$root/root/.cache/numba"
+  local where
+  where=$(COMPAT_CWD=/repo compat_chroot "$root" "$wheel_venv/bin/python" -P -c \
+    'import dolfinx_invertible, os; print(os.path.dirname(dolfinx_invertible.__file__))')
+  if [ "$where" != "$site_packages/dolfinx_invertible" ]; then
+    echo "error: the wheel lane imports dolfinx_invertible from $where" >&2
+    return 1
+  fi
+  echo "wheel lane: dolfinx_invertible $(compat_chroot "$root" "$wheel_venv/bin/python" -P -c \
+    'import dolfinx_invertible; print(dolfinx_invertible.__version__)') installed read-only at $where"
+}
+
+# numba_cached_files: how many numba index files the read-only install's lane wrote.
+numba_cached_files() {
+  find "$root/root/.cache/numba" -name '*.nbi' 2>/dev/null | wc -l
+}
+
 failed=0
 for lane in $lanes; do
   describe "$lane" > "$results/$lane.versions.json" || echo "{}" > "$results/$lane.versions.json"
+  if [ "$lane" = wheel ] && ! install_wheel; then
+    failed=1
+    continue
+  fi
   for mode in serial mpi; do
     echo "=== $lane ($(cat "$results/$lane.versions.json")): $mode"
     start=$(date +%s)
@@ -115,7 +160,13 @@ for lane in $lanes; do
       > "$results/$lane-$mode.status.json"
     [ "$status" = 0 ] || failed=1
   done
+  if [ "$lane" = wheel ]; then
+    cached=$(numba_cached_files)
+    echo "wheel lane: numba cached $cached functions in ~/.cache/numba (site-packages read-only)"
+    [ "$cached" -gt 0 ] || failed=1
+  fi
 done
 
-python3 "$here/report.py" "$results" "$repo/tools/compat/results.json" "$repo/README.md" $lanes
+python3 "$here/report.py" "$results" "$repo/tools/compat/results.json" \
+  "$repo/docs/compatibility.md" $lanes
 exit "$failed"

@@ -1,0 +1,319 @@
+"""Pieces shared by the DOLFINx benchmarks (assembly, solve, scaling, compile, memory).
+
+The benchmark cases on a unit cube of tetrahedra:
+
+(a) ``a_ufl``: UFL Neo-Hookean compiled by FFCx;
+(b) ``b_fast``: our Neo-Hookean + C2 at a state where no point is near the threshold (J ≈ 1.03);
+(c) ``c_svd``: our Neo-Hookean + C2 at a state where every point is inside the extension
+    (J ≈ 0.86), so every point goes through the SVD and the C2 Taylor expansion;
+(d) ``d_zero``: a kernel that writes nothing (DOLFINx's gathering and insertion floor).
+
+Every case comes with a Dirichlet condition on the face x = 0 that holds the state's own values
+there, so imposing it (as a Newton step does) leaves the state, and hence the case, unchanged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from dolfinx_invertible.bench.threads import THREAD_VARIABLES
+
+CASES = ("a_ufl", "b_fast", "c_svd", "d_zero")
+# Uniform stretch of the benchmark states: 1.01 keeps every point on the fast path (J ≈ 1.03),
+# 0.95 puts every point below J = 0.9, inside the C2 extension.
+STRETCH = {"a_ufl": 1.01, "b_fast": 1.01, "c_svd": 0.95, "d_zero": 1.01}
+YOUNGS_MODULUS = 1.0e3
+POISSON_RATIO = 0.3
+C2_EPS = 0.9
+
+# What a benchmark child process needs: one thread per rank, and OpenMPI's consent to run as
+# root on the machines this project runs on.
+CHILD_ENVIRONMENT = {
+    **THREAD_VARIABLES,
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+}
+
+
+@dataclasses.dataclass
+class Case:
+    """One benchmark case: the state ``u`` and the compiled forms of its potential."""
+
+    name: str
+    u: Any
+    energy: list
+    residual: list
+    jacobian: list
+    bcs: list
+    keep_alive: tuple = ()  # objects the compiled forms point into
+
+
+def _zero_kernel(A_, w_, c_, coordinates_, entity_local_index, permutation):
+    """Write nothing: what is left is DOLFINx's gathering and insertion."""
+
+
+def _zero_kernel_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
+    """As :func:`_zero_kernel`, for DOLFINx's kernel signature with ``custom_data``."""
+
+
+def unit_cube_space(comm, cells: int, degree: int):
+    """Vector Lagrange space of degree ``degree`` on the unit cube of cells³ × 6 tetrahedra."""
+    import dolfinx
+
+    from dolfinx_invertible import _compat
+
+    mesh = dolfinx.mesh.create_unit_cube(comm, cells, cells, cells)
+    return _compat.vector_function_space(mesh, "Lagrange", degree)
+
+
+def material():
+    """Return the benchmark material: Neo-Hookean + C2, and its Lamé parameters."""
+    from dolfinx_invertible import C2, Material, NeoHookean, lame
+
+    mu, lam = lame(YOUNGS_MODULUS, POISSON_RATIO)
+    return Material(NeoHookean(mu=mu, lam=lam), C2(C2_EPS)), mu, lam
+
+
+def state(space, stretch: float):
+    """Return a displacement with uniform stretch plus a small smooth perturbation."""
+    import dolfinx
+
+    u = dolfinx.fem.Function(space)
+    u.interpolate(lambda x: (stretch - 1.0) * x + 0.01 * np.sin(3.0 * x[::-1]))
+    u.x.scatter_forward()
+    return u
+
+
+def clamp_to_state(u) -> Any:
+    """Dirichlet condition on x = 0 holding ``u``'s own values there."""
+    import dolfinx
+
+    space = u.function_space
+    mesh = space.mesh
+    facets = dolfinx.mesh.locate_entities_boundary(
+        mesh, mesh.topology.dim - 1, lambda x: np.isclose(x[0], 0.0)
+    )
+    dofs = dolfinx.fem.locate_dofs_topological(space, mesh.topology.dim - 1, facets)
+    values = dolfinx.fem.Function(space)
+    values.x.array[:] = u.x.array
+    return dolfinx.fem.dirichletbc(values, dofs)
+
+
+def ufl_neo_hookean_energy(u, mu: float, lam: float, quadrature_degree: int):
+    """Return the UFL Neo-Hookean energy ∫ μ/2 (tr C − 3) − μ ln J + λ/2 (ln J)² dX."""
+    import ufl
+
+    gradient = ufl.Identity(len(u)) + ufl.grad(u)
+    log_volume = ufl.ln(ufl.det(gradient))
+    psi = (
+        mu / 2 * (ufl.tr(gradient.T * gradient) - len(u))
+        - mu * log_volume
+        + lam / 2 * log_volume**2
+    )
+    return psi * ufl.dx(metadata={"quadrature_degree": quadrature_degree})
+
+
+def ufl_forms(energy, u) -> tuple[Any, Any, Any]:
+    """Compiled energy, residual and tangent of a UFL potential in ``u``."""
+    import dolfinx
+    import ufl
+
+    residual = ufl.derivative(energy, u)
+    return (
+        dolfinx.fem.form(energy),
+        dolfinx.fem.form(residual),
+        dolfinx.fem.form(ufl.derivative(residual, u)),
+    )
+
+
+def build_case(name: str, space, project: bool = True) -> Case:
+    """Forms and state of one benchmark case (see the module docstring) on ``space``.
+
+    ``project`` chooses the SPD-projected (default, as the assembly benchmark has always
+    measured) or the exact tangent of our kernels.
+    """
+    from dolfinx_invertible import HyperelasticForms, _compat
+    from dolfinx_invertible.fem.forms import default_quadrature_degree
+    from dolfinx_invertible.fem.kernels import compile_kernel
+
+    if name not in CASES:
+        raise ValueError(f"unknown case {name!r}; expected one of {CASES}")
+    degree = _compat.element_degree(space)
+    quadrature_degree = default_quadrature_degree(degree)
+    elastic, mu, lam = material()
+    u = state(space, STRETCH[name])
+    bcs = [clamp_to_state(u)]
+    if name == "a_ufl":
+        energy, residual, jacobian = ufl_forms(
+            ufl_neo_hookean_energy(u, mu, lam, quadrature_degree), u
+        )
+        return Case(name, u, [energy], [residual], [jacobian], bcs)
+    forms = HyperelasticForms(u, elastic, quadrature_degree=quadrature_degree, project=project)
+    if name in ("b_fast", "c_svd"):
+        return Case(name, u, [forms.energy], [forms.residual], [forms.jacobian], bcs, (forms,))
+    zero_kernel = compile_kernel((_zero_kernel, _zero_kernel_with_data))
+    mesh = space.mesh
+    residual, jacobian = (
+        _compat.custom_form(spaces, zero_kernel.address, [u], [forms.constants], mesh)
+        for spaces in ([space], [space, space])
+    )
+    return Case(name, u, [], [residual], [jacobian], bcs, (forms, zero_kernel))
+
+
+def extension_share(name: str) -> float:
+    """Share of points inside the C2 extension for a case's uniform stretch (0 or 1)."""
+    elastic, _, _ = material()
+    return float(np.count_nonzero(elastic.regions(np.eye(3) * STRETCH[name])))
+
+
+def seconds(function: Callable[[], object], comm=None) -> float:
+    """Wall time of one call; under MPI the slowest rank's, started together."""
+    if comm is not None:
+        comm.Barrier()
+    start = time.perf_counter()
+    function()
+    elapsed = time.perf_counter() - start
+    if comm is not None and comm.size > 1:
+        from mpi4py import MPI
+
+        elapsed = comm.allreduce(elapsed, op=MPI.MAX)
+    return elapsed
+
+
+def interleaved(jobs: dict[str, Callable[[], object]], repeats: int, comm=None) -> dict:
+    """Seconds per repeat of each job, jobs interleaved so machine noise hits all alike."""
+    samples: dict[str, list[float]] = {name: [] for name in jobs}
+    for _ in range(repeats):
+        for name, job in jobs.items():
+            samples[name].append(seconds(job, comm))
+    return samples
+
+
+def medians(samples: dict) -> dict:
+    """Median of each list in a (possibly nested) dict of lists."""
+    return {
+        key: medians(value) if isinstance(value, dict) else statistics.median(value)
+        for key, value in samples.items()
+    }
+
+
+def peak_rss_bytes() -> int:
+    """Peak resident set size of this process so far (Linux reports ru_maxrss in KiB)."""
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as cpuinfo:
+            for line in cpuinfo:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    import platform
+
+    return platform.processor() or "unknown"
+
+
+def machine() -> dict:
+    """Load average, CPU, versions and thread settings, for the record."""
+    import platform
+
+    import numba
+
+    info: dict[str, Any] = {
+        "load_average": list(os.getloadavg()),
+        "cpu_model": _cpu_model(),
+        "logical_cpus": os.cpu_count(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "numba_threads": numba.get_num_threads(),
+        "thread_environment": {name: os.environ.get(name) for name in THREAD_VARIABLES},
+    }
+    try:
+        import dolfinx
+
+        info["dolfinx"] = dolfinx.__version__
+    except ImportError:
+        pass
+    return info
+
+
+def record_load_after(report: dict) -> None:
+    """Add the load average now to ``report["machine"]`` (after the measurements)."""
+    report["machine"]["load_average_after"] = list(os.getloadavg())
+
+
+def load_text(report: dict) -> str:
+    """Return "load average X before, Y after" of a report, for its table heading."""
+    machine_info = report["machine"]
+    return (
+        f"load average {machine_info['load_average'][0]:.2f} before, "
+        f"{machine_info['load_average_after'][0]:.2f} after"
+    )
+
+
+def child_environment(**extra: str) -> dict:
+    """Return the current environment plus :data:`CHILD_ENVIRONMENT` and ``extra``."""
+    environment = dict(os.environ)
+    environment.update(CHILD_ENVIRONMENT)
+    environment.update(extra)
+    return environment
+
+
+def bench_command(subcommand: str, arguments: Sequence[str], ranks: int | None) -> list[str]:
+    """Command line running ``python -m dolfinx_invertible bench subcommand ...``.
+
+    ``ranks`` None runs it as a plain process, otherwise under ``mpirun -n ranks``.
+    """
+    command = [sys.executable, "-m", "dolfinx_invertible", "bench", subcommand, *arguments]
+    if ranks is None:
+        return command
+    return ["mpirun", "-n", str(ranks), *command]
+
+
+def run_child(command: Sequence[str], environment: dict, timeout: float) -> float:
+    """Run a benchmark child to completion; returns its wall time, raises with its output."""
+    start = time.perf_counter()
+    completed = subprocess.run(
+        list(command), env=environment, capture_output=True, text=True, timeout=timeout
+    )
+    elapsed = time.perf_counter() - start
+    if completed.returncode != 0:
+        raise RuntimeError(
+            f"{' '.join(command)} exited with {completed.returncode}:\n"
+            f"{completed.stdout[-3000:]}\n{completed.stderr[-3000:]}"
+        )
+    return elapsed
+
+
+def emit(report: dict, table: str, json_path: str | None) -> None:
+    """Write the JSON report to ``json_path`` (table on stdout) or to stdout (table on stderr).
+
+    Either way stdout stays machine-readable when no path is given.
+    """
+    text = json.dumps(report, indent=2)
+    if json_path:
+        with open(json_path, "w", encoding="utf-8") as file:
+            file.write(text + "\n")
+        print(table, flush=True)
+    else:
+        print(text, flush=True)
+        print(table, file=sys.stderr, flush=True)
+
+
+def ratio_text(value: float | None) -> str:
+    """Return a ratio for a table, or a dash where it is undefined."""
+    return "—" if value is None else f"{value:.2f}"

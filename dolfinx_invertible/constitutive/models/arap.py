@@ -1,0 +1,31 @@
+"""As-rigid-as-possible: Ψ̂ = μ Σ(σᵢ − 1)².
+
+No volume term: λ is 0 by definition. Separable form: f(x) = μ (x − 1)².
+"""
+
+from __future__ import annotations
+
+import numba
+
+from dolfinx_invertible.constitutive.models.base import Model
+
+# f = μ (x − 1)² and h = 0, as in fixed corotated: the same tables and divided differences.
+from dolfinx_invertible.constitutive.models.fixed_corotated import slopes, tables  # noqa: F401
+
+
+@numba.njit(cache=True)
+def constants(mu, lam):
+    """(c, k₁, k₂) of the separable form."""
+    return 0.0, 0.0, 0.0
+
+
+class ARAP(Model):
+    """As-rigid-as-possible energy; only a shear modulus μ (λ = 0)."""
+
+    name = "arap"
+
+    def __init__(self, mu: float):
+        super().__init__(mu, 0.0)
+
+    def __repr__(self) -> str:
+        return f"ARAP(mu={self.mu!r})"

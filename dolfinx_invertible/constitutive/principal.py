@@ -1,0 +1,85 @@
+"""Energy, gradient and Hessian in principal-stretch (signed singular value) space.
+
+One dispatch on the extension id serves every kernel: the batch API, the σ-space API and the
+DOLFINx cell kernels all come through :func:`principal_derivatives`.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.extensions.c1 import c1_derivatives
+from dolfinx_invertible.constitutive.extensions.c2 import c2_derivatives
+from dolfinx_invertible.constitutive.extensions.ife import ife_derivatives
+from dolfinx_invertible.constitutive.extensions.registry import C1_ID, C2_ID, IFE_ID
+from dolfinx_invertible.constitutive.models.registry import (
+    model_derivatives_into,
+    model_gradient_slope,
+)
+
+__all__ = ["UNDEFINED_REGION", "principal_derivatives", "gradient_slope", "rotation_slope"]
+
+# Region code of a point where the unextended energy is not defined (J ≤ 0 for Neo-Hookean).
+UNDEFINED_REGION = -1
+# Below this relative gap two singular values count as equal for the quotient aᵢⱼ.
+_EQUAL_GAP = 1e-6
+# |σᵢ + σⱼ| is bounded below by this (relative to max(1, |σ|)), keeping its sign: the energy has
+# a kink there (paper §3.1), so bᵢⱼ is large but finite.
+_KINK_GAP = 1e-8
+
+
+@numba.njit(cache=True)
+def principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work):
+    """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient and Hessian into the G, H slots.
+
+    Returns ``(energy, region)``: region 0 is the model itself, a positive value an extension
+    region, :data:`UNDEFINED_REGION` a point where the unextended model is undefined (then the
+    energy is +inf and the derivatives are zero).
+    """
+    if extension_id == C2_ID:
+        return c2_derivatives(model_id, sigma, params, order, work)
+    if extension_id == C1_ID:
+        return c1_derivatives(model_id, sigma, params, order, work)
+    if extension_id == IFE_ID:
+        return ife_derivatives(model_id, sigma, params, order, work)
+    d = sigma.shape[0]
+    if positive_only:
+        J = 1.0
+        for i in range(d):
+            J *= sigma[i]
+        if not J > 0.0:
+            ws.vector(work, ws.G, d)[:] = 0.0
+            ws.matrix(work, ws.H, d)[:] = 0.0
+            return np.inf, UNDEFINED_REGION
+    return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+
+
+@numba.njit(cache=True)
+def gradient_slope(model_id, region, sigma, params, work, i, j):
+    """aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ), robust for σᵢ ≈ σⱼ.
+
+    On the model (region 0) the model's closed form is exact. In an extension region the
+    quotient is used while the gap is large; for a tiny gap the symmetric limit
+    ½(Hᵢᵢ + Hⱼⱼ) − Hᵢⱼ, whose error is second order in the gap because aᵢⱼ is even in it.
+    """
+    d = sigma.shape[0]
+    if region == 0:
+        return model_gradient_slope(model_id, sigma, params, i, j, ws.table(work, ws.H_TABLE, d))
+    gradient = ws.vector(work, ws.G, d)
+    hessian = ws.matrix(work, ws.H, d)
+    gap = sigma[i] - sigma[j]
+    if abs(gap) > _EQUAL_GAP * max(abs(sigma[i]), abs(sigma[j])):
+        return (gradient[i] - gradient[j]) / gap
+    return 0.5 * (hessian[i, i] + hessian[j, j]) - hessian[i, j]
+
+
+@numba.njit(cache=True)
+def rotation_slope(sigma, g, i, j):
+    """bᵢⱼ = (gᵢ + gⱼ)/(σᵢ + σⱼ) with the denominator kept away from 0 (sign preserved)."""
+    total = sigma[i] + sigma[j]
+    floor = _KINK_GAP * max(1.0, abs(sigma[i]), abs(sigma[j]))
+    if abs(total) < floor:
+        total = floor if total >= 0.0 else -floor
+    return (g[i] + g[j]) / total

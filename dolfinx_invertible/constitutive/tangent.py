@@ -1,0 +1,205 @@
+"""First Piola–Kirchhoff stress and its derivative in F-space from principal quantities.
+
+With F = U Σ Vᵀ, g = ∇Ψ̂ext(σ) and H = ∇²Ψ̂ext(σ):
+
+* P = U diag(g) Vᵀ;
+* dP/dF = Σₘₙ Aₘₙ Dₘ Dₙᵀ + Σ_{i<j} [aᵢⱼ sᵢⱼ sᵢⱼᵀ + bᵢⱼ tᵢⱼ tᵢⱼᵀ], with A = H, Dₘ = vec(uₘ vₘᵀ),
+  sᵢⱼ / tᵢⱼ = vec(uᵢ vⱼᵀ ± uⱼ vᵢᵀ)/√2 the symmetric ("stretch") and antisymmetric ("twist")
+  modes, aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ), bᵢⱼ = (gᵢ + gⱼ)/(σᵢ + σⱼ).
+
+The SPD projection clamps the eigenvalues of A and the scalars aᵢⱼ, bᵢⱼ at zero, which is the
+closest positive semidefinite tangent in the Frobenius norm with the same eigenvectors. The
+vectorisation is row-major: entry (i, j) of a d×d matrix sits at i·d + j.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.principal import gradient_slope, rotation_slope
+
+__all__ = ["first_piola", "stress_derivative", "clamp_symmetric"]
+
+_MAX_EIGEN_SWEEPS = 30
+
+
+@numba.njit(cache=True)
+def first_piola(U, g, V, P):
+    """P = U diag(g) Vᵀ."""
+    d = g.shape[0]
+    for i in range(d):
+        for j in range(d):
+            total = 0.0
+            for m in range(d):
+                total += U[i, m] * g[m] * V[j, m]
+            P[i, j] = total
+
+
+@numba.njit(cache=True)
+def _is_positive_definite(A):
+    """Cholesky pivots all positive: no projection work needed (the common case)."""
+    d = A.shape[0]
+    a00 = A[0, 0]
+    if not a00 > 0.0:
+        return False
+    if d == 2:
+        return a00 * A[1, 1] - A[0, 1] * A[1, 0] > 0.0
+    minor = a00 * A[1, 1] - A[0, 1] * A[1, 0]
+    if not minor > 0.0:
+        return False
+    determinant = (
+        A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
+        - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+        + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])
+    )
+    return determinant > 0.0
+
+
+@numba.njit(cache=True)
+def clamp_symmetric(A, eigenvalues, eigenvectors):
+    """Replace symmetric ``A`` in place by its projection onto the PSD cone (cyclic Jacobi)."""
+    if A.shape[0] == 3:
+        _clamp_symmetric_3d(A, eigenvalues, eigenvectors)
+    else:
+        _clamp_symmetric_2d(A, eigenvalues, eigenvectors)
+
+
+def _specialised_clamp_symmetric(d: int):
+    """:func:`clamp_symmetric` for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def clamp(A, eigenvalues, eigenvectors):
+        if _is_positive_definite(A):
+            return
+        for i in range(d):
+            for j in range(d):
+                eigenvectors[i, j] = 1.0 if i == j else 0.0
+        for _ in range(_MAX_EIGEN_SWEEPS):
+            off = 0.0
+            diagonal = 0.0
+            for p in range(d):
+                diagonal += A[p, p] * A[p, p]
+                for q in range(p + 1, d):
+                    off += A[p, q] * A[p, q]
+            if off <= 1e-32 * diagonal or off == 0.0:
+                break
+            for p in range(d - 1):
+                for q in range(p + 1, d):
+                    if A[p, q] == 0.0:
+                        continue
+                    theta = (A[q, q] - A[p, p]) / (2.0 * A[p, q])
+                    t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                    if theta < 0.0:
+                        t = -t
+                    c = 1.0 / np.sqrt(t * t + 1.0)
+                    s = t * c
+                    for k in range(d):
+                        akp = A[k, p]
+                        akq = A[k, q]
+                        A[k, p] = c * akp - s * akq
+                        A[k, q] = s * akp + c * akq
+                    for k in range(d):
+                        apk = A[p, k]
+                        aqk = A[q, k]
+                        A[p, k] = c * apk - s * aqk
+                        A[q, k] = s * apk + c * aqk
+                    for k in range(d):
+                        vkp = eigenvectors[k, p]
+                        vkq = eigenvectors[k, q]
+                        eigenvectors[k, p] = c * vkp - s * vkq
+                        eigenvectors[k, q] = s * vkp + c * vkq
+        for m in range(d):
+            eigenvalues[m] = max(A[m, m], 0.0)
+        for i in range(d):
+            for j in range(d):
+                total = 0.0
+                for m in range(d):
+                    total += eigenvectors[i, m] * eigenvalues[m] * eigenvectors[j, m]
+                A[i, j] = total
+
+    return clamp
+
+
+_clamp_symmetric_2d = _specialised_clamp_symmetric(2)
+_clamp_symmetric_3d = _specialised_clamp_symmetric(3)
+
+
+@numba.njit(cache=True)
+def stress_derivative(model_id, region, sigma, params, work, project, C):
+    """dP/dF as a (d², d²) matrix into ``C`` from the U, V, G and H workspace slots."""
+    if sigma.shape[0] == 3:
+        _stress_derivative_3d(model_id, region, sigma, params, work, project, C)
+    else:
+        _stress_derivative_2d(model_id, region, sigma, params, work, project, C)
+
+
+def _specialised_stress_derivative(d: int):
+    """:func:`stress_derivative` compiled for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def derivative(model_id, region, sigma, params, work, project, C):
+        n = d * d
+        U = ws.matrix(work, ws.U, d)
+        V = ws.matrix(work, ws.V, d)
+        A = ws.matrix(work, ws.A_BLOCK, d)
+        hessian = ws.matrix(work, ws.H, d)
+        gradient = ws.vector(work, ws.G, d)
+        modes = ws.modes(work, ws.MODES, d)
+        weighted = ws.modes(work, ws.WEIGHTED, d)
+        for m in range(d):
+            for i in range(d):
+                for j in range(d):
+                    modes[m, i * d + j] = U[i, m] * V[j, m]
+        for i in range(d):
+            for j in range(d):
+                A[i, j] = hessian[i, j]
+        if project:
+            clamp_symmetric(
+                A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d)
+            )
+        for m in range(d):
+            for alpha in range(n):
+                total = 0.0
+                for k in range(d):
+                    total += A[k, m] * modes[k, alpha]
+                weighted[m, alpha] = total
+        for alpha in range(n):
+            for beta in range(alpha, n):
+                total = 0.0
+                for m in range(d):
+                    total += weighted[m, alpha] * modes[m, beta]
+                C[alpha, beta] = total
+        stretch_mode = ws.vector(work, ws.STRETCH_MODE, n)
+        twist_mode = ws.vector(work, ws.TWIST_MODE, n)
+        for i in range(d - 1):
+            for j in range(i + 1, d):
+                stretch = gradient_slope(model_id, region, sigma, params, work, i, j)
+                twist = rotation_slope(sigma, gradient, i, j)
+                if project:
+                    stretch = max(stretch, 0.0)
+                    twist = max(twist, 0.0)
+                # a s sᵀ + b t tᵀ with s, t = vec(uᵢ vⱼᵀ ± uⱼ vᵢᵀ)/√2; the 1/2 goes into a and b.
+                for p in range(d):
+                    for r in range(d):
+                        x = U[p, i] * V[r, j]
+                        y = U[p, j] * V[r, i]
+                        stretch_mode[p * d + r] = x + y
+                        twist_mode[p * d + r] = x - y
+                stretch *= 0.5
+                twist *= 0.5
+                for alpha in range(n):
+                    s_alpha = stretch * stretch_mode[alpha]
+                    t_alpha = twist * twist_mode[alpha]
+                    for beta in range(alpha, n):
+                        C[alpha, beta] += s_alpha * stretch_mode[beta] + t_alpha * twist_mode[beta]
+        for alpha in range(n):
+            for beta in range(alpha):
+                C[alpha, beta] = C[beta, alpha]
+
+    return derivative
+
+
+_stress_derivative_2d = _specialised_stress_derivative(2)
+_stress_derivative_3d = _specialised_stress_derivative(3)

@@ -1,0 +1,175 @@
+"""DOLFINx forms of the elastic energy, residual and tangent of a :class:`Material`."""
+
+from __future__ import annotations
+
+import basix
+import dolfinx
+
+from dolfinx_invertible import _compat
+from dolfinx_invertible.constitutive.material import Material
+from dolfinx_invertible.fem import kernels
+
+__all__ = ["HyperelasticForms", "default_quadrature_degree"]
+
+_SUPPORTED_CELLS = ("triangle", "tetrahedron", "quadrilateral", "hexahedron")
+_SUPPORTED_DEGREES = (1, 2)
+
+
+def default_quadrature_degree(degree: int) -> int:
+    """2(k − 1), at least 1: exact for the stiffness of linear elasticity on affine simplices."""
+    return max(1, 2 * (degree - 1))
+
+
+def _check_space(u) -> tuple[str, int, int]:
+    space = u.function_space
+    mesh = space.mesh
+    cell = mesh.topology.cell_type.name
+    tdim = mesh.topology.dim
+    gdim = mesh.geometry.dim
+    family, degree = _compat.element_family_and_degree(space)
+    supported = (
+        f"supported: vector Lagrange of degree {_SUPPORTED_DEGREES} on {_SUPPORTED_CELLS}, "
+        "one component per space dimension, affine (degree-1) geometry"
+    )
+    if cell not in _SUPPORTED_CELLS:
+        raise ValueError(f"cell type {cell!r} is not supported; {supported}")
+    if family not in ("Lagrange", "Q", "CG") or degree not in _SUPPORTED_DEGREES:
+        raise ValueError(f"element {family} of degree {degree} is not supported; {supported}")
+    if tdim != gdim or space.dofmap.index_map_bs != gdim:
+        raise ValueError(
+            f"u must have {gdim} components on a {tdim}D mesh in {gdim}D space; {supported}"
+        )
+    if _compat.coordinate_element_degree(mesh) != 1:
+        raise ValueError(f"the mesh geometry must be affine (degree 1); {supported}")
+    return cell, degree, gdim
+
+
+class HyperelasticForms:
+    """Energy, residual and tangent forms of a material for a displacement field ``u``.
+
+    Parameters
+    ----------
+    u
+        Displacement, a ``dolfinx.fem.Function`` on a vector Lagrange space (P1 or P2) with one
+        component per space dimension; 2D means plane strain.
+    material
+        The :class:`~dolfinx_invertible.Material`.
+    quadrature_degree
+        Degree of the cell quadrature rule; default 2(k − 1), at least 1.
+    project
+        Use the SPD-projected tangent (default) or the exact derivative of the residual.
+
+    Attributes
+    ----------
+    energy
+        Form of the total elastic energy ∫Ψ(F) dX (``dolfinx.fem.assemble_scalar``, then sum
+        over ranks).
+    residual
+        Form of dΠ/du (``dolfinx.fem.petsc.assemble_vector``).
+    jacobian
+        Form of the tangent (``dolfinx.fem.petsc.assemble_matrix``).
+    constants
+        The ``dolfinx.fem.Constant`` the kernels read: a header, the material parameters
+        [μ, λ, ε, k] and the reference tables. :meth:`set_material` changes the parameters;
+        nothing is recompiled.
+
+    Each form is built, and its kernel compiled for this dimension and element (or loaded from
+    numba's disk cache), the first time it is used.
+    """
+
+    def __init__(
+        self,
+        u,
+        material: Material,
+        *,
+        quadrature_degree: int | None = None,
+        project: bool = True,
+    ):
+        if not isinstance(material, Material):
+            raise TypeError(f"material must be a dolfinx_invertible.Material, got {material!r}")
+        cell, degree, gdim = _check_space(u)
+        if quadrature_degree is None:
+            quadrature_degree = default_quadrature_degree(degree)
+        if int(quadrature_degree) != quadrature_degree or quadrature_degree < 0:
+            raise ValueError(f"quadrature_degree must be an integer >= 0, got {quadrature_degree}")
+        self.u = u
+        self.material = material
+        self.quadrature_degree = int(quadrature_degree)
+        self.project = bool(project)
+        mesh = u.function_space.mesh
+        element = _compat.basix_element(u.function_space)
+        geometry_element = basix.create_element(
+            basix.ElementFamily.P, element.cell_type, 1, basix.LagrangeVariant.equispaced
+        )
+        self.tables = kernels.ReferenceTables.from_basix(
+            element, geometry_element, self.quadrature_degree
+        )
+        self.counters = kernels.counter_row()
+        self.constants = dolfinx.fem.Constant(
+            mesh, kernels.pack_constants(self.tables, gdim, material, self.project, self.counters)
+        )
+        self._forms: dict[str, object] = {}
+
+    def _form(self, kind: str, spaces: list):
+        # Built, and its kernel compiled, on first use only: a scene without a line search or an
+        # energy report never compiles the energy kernel.
+        if kind not in self._forms:
+            mesh = self.u.function_space.mesh
+            address = kernels.kernel_address(kind, mesh.geometry.dim)
+            self._forms[kind] = _compat.custom_form(
+                spaces, address, [self.u], [self.constants], mesh
+            )
+        return self._forms[kind]
+
+    @property
+    def energy(self):
+        """Form of the total elastic energy ∫Ψ(F) dX."""
+        return self._form("energy", [])
+
+    @property
+    def residual(self):
+        """Form of dΠ/du."""
+        return self._form("residual", [self.u.function_space])
+
+    @property
+    def jacobian(self):
+        """Form of the tangent d²Π/du²."""
+        space = self.u.function_space
+        return self._form("tangent", [space, space])
+
+    def path_counts(self) -> dict[str, tuple[int, int]]:
+        """Count the points evaluated and those that went through the SVD, per kernel.
+
+        On this rank, since the last :meth:`reset_path_counts`: ``{"residual": (points, svd)}``.
+
+        Points that skipped the SVD took the invariant fast path (the extension provably
+        inactive, and for a projected tangent, the exact tangent already positive definite).
+        """
+        return kernels.counts_by_kind(self.counters)
+
+    def reset_path_counts(self) -> None:
+        """Zero the counters behind :meth:`path_counts`."""
+        self.counters[:] = 0.0
+
+    def set_projection(self, project: bool) -> None:
+        """Switch the tangent between SPD-projected and exact, without recompiling."""
+        self.project = bool(project)
+        self.constants.value[kernels.PROJECT_SLOT] = float(self.project)
+
+    def set_material(self, material: Material) -> None:
+        """Switch to another material of the same kind (model and extension type).
+
+        Only the parameter values change, so nothing is recompiled.
+        """
+        same_kind = (
+            material.model.model_id == self.material.model.model_id
+            and material.extension_id == self.material.extension_id
+            and material.positive_only == self.material.positive_only
+        )
+        if not same_kind:
+            raise ValueError(
+                f"{material!r} is not of the same kind as {self.material!r}; build new forms"
+            )
+        start = kernels.PARAMETERS_START
+        self.constants.value[start : start + len(material.parameters)] = material.parameters
+        self.material = material

@@ -1,0 +1,35 @@
+"""Numba cell kernels with DOLFINx's custom-kernel signature.
+
+- :mod:`.constants`: the layout of the constants array every kernel reads, and its packing;
+- :mod:`.tables`: quadrature weights and Basix reference derivatives;
+- :mod:`.geometry`: the geometry map and F = I + ∇u at a point;
+- :mod:`.cells`: the energy, residual and tangent cell functions;
+- :mod:`.counters`: per-form counts of points that took the SVD path;
+- :mod:`.compilation`: the C entry points, compiled on first use.
+"""
+
+from dolfinx_invertible.fem.kernels.compilation import compile_kernel, kernel_address, precompile
+from dolfinx_invertible.fem.kernels.constants import (
+    HEADER_SIZE,
+    MAX_NODES,
+    PARAMETERS_START,
+    PROJECT_SLOT,
+    pack_constants,
+)
+from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS, counter_row, counts_by_kind
+from dolfinx_invertible.fem.kernels.tables import ReferenceTables
+
+__all__ = [
+    "HEADER_SIZE",
+    "KERNEL_KINDS",
+    "MAX_NODES",
+    "PARAMETERS_START",
+    "PROJECT_SLOT",
+    "ReferenceTables",
+    "compile_kernel",
+    "counter_row",
+    "counts_by_kind",
+    "kernel_address",
+    "pack_constants",
+    "precompile",
+]

@@ -1,0 +1,180 @@
+"""The three cell functions behind DOLFINx's custom-kernel (ufcx ``tabulate_tensor``) entries.
+
+They share one quadrature loop and the point functions of
+:mod:`~dolfinx_invertible.constitutive.pointwise`, which also serve the batch API:
+
+* energy: ``A[0] = ∫_cell Ψ(F) dX``;
+* residual: ``A[a·d + i] = ∫_cell P_ij ∂φ_a/∂X_j dX``;
+* tangent: ``A[a·d + i, b·d + k] = ∫_cell ∂φ_a/∂X_j (dP/dF)_{ij,kl} ∂φ_b/∂X_l dX``,
+
+with F = I + ∇u. The coefficient array ``w`` holds the cell's displacement dofs node by node
+with components interleaved; the constants ``c`` follow
+:mod:`~dolfinx_invertible.fem.kernels.constants`.
+
+The cell functions are compiled per dimension, a literal constant (``numba.literally``), so the
+loops over components have constant trip counts and are unrolled and vectorised: with a run-time
+dimension the same loops were several times slower (a constant node count as well measured no
+faster).
+"""
+
+from __future__ import annotations
+
+import numba
+
+from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
+from dolfinx_invertible.fem.kernels.constants import (
+    EXTENSION_SLOT,
+    MAX_NODES,
+    MODEL_SLOT,
+    PARAMETER_COUNT,
+    PARAMETERS_START,
+    POSITIVE_ONLY_SLOT,
+    PROJECT_SLOT,
+)
+from dolfinx_invertible.fem.kernels.counters import (
+    ENERGY_COUNTS,
+    RESIDUAL_COUNTS,
+    TANGENT_COUNTS,
+    count_points,
+)
+from dolfinx_invertible.fem.kernels.geometry import cell_layout, point_geometry
+
+__all__ = ["cell_energy", "cell_residual", "cell_tangent"]
+
+# Kernel scratch on the stack (never zeroed: every entry is written before it is read):
+# basis gradients (nodes × d), geometry Jacobian, F, P, dP/dF (d² × d²) and dP/dF contracted
+# with the gradients (d² × nodes × d), sized for the largest supported element.
+_GRADIENTS = 0
+_JACOBIAN = _GRADIENTS + 3 * MAX_NODES
+_DEFORMATION = _JACOBIAN + 9
+_STRESS = _DEFORMATION + 9
+_TANGENT = _STRESS + 9
+_CONTRACTED = _TANGENT + 81
+KERNEL_SCRATCH = _CONTRACTED + 9 * 3 * MAX_NODES
+
+
+@numba.njit(cache=True)
+def _material(c):
+    """(parameters, model id, extension id, positive_only, project) from the constants."""
+    params = c[PARAMETERS_START : PARAMETERS_START + PARAMETER_COUNT]
+    return (
+        params,
+        int(c[MODEL_SLOT]),
+        int(c[EXTENSION_SLOT]),
+        c[POSITIVE_ONLY_SLOT] != 0.0,
+        c[PROJECT_SLOT] != 0.0,
+    )
+
+
+@numba.njit(cache=True)
+def _point_views(scratch, nodes, d):
+    """Return views of the per-point scratch: basis gradients, geometry Jacobian, F."""
+    gradients = numba.carray(ws.address(scratch, _GRADIENTS), (nodes, d))
+    jacobian = numba.carray(ws.address(scratch, _JACOBIAN), (d, d))
+    F = numba.carray(ws.address(scratch, _DEFORMATION), (d, d))
+    return gradients, jacobian, F
+
+
+@numba.njit(cache=True)
+def cell_energy(A_, w_, c_, coordinates_, d):
+    """Add the cell energy ∫Ψ(F) dX to ``A_[0]``."""
+    numba.literally(d)
+    c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
+        c_, w_, coordinates_, d
+    )
+    params, model_id, extension_id, positive_only, _ = _material(c)
+    scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
+    work = ws.new_workspace(ws.stack_buffer())
+    gradients, jacobian, F = _point_views(scratch, nodes, d)
+    total = 0.0
+    svd_points = 0
+    for q in range(points):
+        scale = point_geometry(
+            c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
+        )
+        psi, _, through_svd = point_energy(F, model_id, extension_id, positive_only, params, work)
+        svd_points += through_svd
+        total += scale * psi
+    A_[0] += total
+    count_points(c, ENERGY_COUNTS, points, svd_points)
+
+
+@numba.njit(cache=True)
+def cell_residual(A_, w_, c_, coordinates_, d):
+    """Add the cell residual ∫ P : ∇φ dX to ``A_``."""
+    numba.literally(d)
+    c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
+        c_, w_, coordinates_, d
+    )
+    params, model_id, extension_id, positive_only, _ = _material(c)
+    scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
+    work = ws.new_workspace(ws.stack_buffer())
+    gradients, jacobian, F = _point_views(scratch, nodes, d)
+    P = numba.carray(ws.address(scratch, _STRESS), (d, d))
+    A = numba.carray(A_, nodes * d)
+    svd_points = 0
+    for q in range(points):
+        scale = point_geometry(
+            c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
+        )
+        _, _, through_svd = point_stress(F, model_id, extension_id, positive_only, params, work, P)
+        svd_points += through_svd
+        for a in range(nodes):
+            for i in range(d):
+                total = 0.0
+                for j in range(d):
+                    total += P[i, j] * gradients[a, j]
+                A[a * d + i] += scale * total
+    count_points(c, RESIDUAL_COUNTS, points, svd_points)
+
+
+@numba.njit(cache=True)
+def cell_tangent(A_, w_, c_, coordinates_, d):
+    """Add the cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
+    numba.literally(d)
+    c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
+        c_, w_, coordinates_, d
+    )
+    params, model_id, extension_id, positive_only, project = _material(c)
+    scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
+    work = ws.new_workspace(ws.stack_buffer())
+    gradients, jacobian, F = _point_views(scratch, nodes, d)
+    n = d * d
+    P = numba.carray(ws.address(scratch, _STRESS), (d, d))
+    C = numba.carray(ws.address(scratch, _TANGENT), (n, n))
+    # CB[(i, j), b, k] = Σ_l C[(i, j), (k, l)] ∂φ_b/∂X_l, times the point's weight
+    CB = numba.carray(ws.address(scratch, _CONTRACTED), (n, nodes, d))
+    size = nodes * d
+    A = numba.carray(A_, (size, size))
+    svd_points = 0
+    for q in range(points):
+        scale = point_geometry(
+            c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
+        )
+        _, _, through_svd = point_tangent(
+            F, model_id, extension_id, positive_only, params, project, work, P, C
+        )
+        svd_points += through_svd
+        for row in range(n):
+            for b in range(nodes):
+                for k in range(d):
+                    total = 0.0
+                    for l in range(d):
+                        total += C[row, k * d + l] * gradients[b, l]
+                    CB[row, b, k] = total * scale
+        # The tangent is symmetric: fill the upper block triangle (b ≥ a), mirror at the end.
+        for a in range(nodes):
+            for i in range(d):
+                for b in range(a, nodes):
+                    for k in range(d):
+                        total = 0.0
+                        for j in range(d):
+                            total += gradients[a, j] * CB[i * d + j, b, k]
+                        A[a * d + i, b * d + k] += total
+    for a in range(nodes):
+        for b in range(a + 1, nodes):
+            for i in range(d):
+                for k in range(d):
+                    A[b * d + k, a * d + i] = A[a * d + i, b * d + k]
+    count_points(c, TANGENT_COUNTS, points, svd_points)

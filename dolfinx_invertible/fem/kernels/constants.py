@@ -1,0 +1,105 @@
+"""Layout of the constants array every cell kernel reads, and its packing.
+
+Everything a kernel needs besides the cell's dofs and coordinates travels in one DOLFINx
+Constant: a header, the material parameters, then the Basix reference tables. Passing the tables
+as data rather than baking them into the machine code lets one compiled (and disk-cached) kernel
+serve every element, quadrature rule and material; DOLFINx packs constants once per assembly,
+not per cell, and changing a parameter or the projection switch never recompiles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dolfinx_invertible.fem.kernels.tables import ReferenceTables
+
+__all__ = [
+    "COUNTERS_SLOT",
+    "DIMENSION_SLOT",
+    "EXTENSION_SLOT",
+    "GEOMETRY_NODES_SLOT",
+    "HEADER_SIZE",
+    "MAX_NODES",
+    "MODEL_SLOT",
+    "NODES_SLOT",
+    "PARAMETERS_START",
+    "PARAMETER_COUNT",
+    "POINTS_SLOT",
+    "POSITIVE_ONLY_SLOT",
+    "PROJECT_SLOT",
+    "WEIGHTS_START",
+    "pack_constants",
+]
+
+# Header slots, in order.
+DIMENSION_SLOT = 0
+NODES_SLOT = 1  # nodes of the displacement's scalar element
+POINTS_SLOT = 2  # quadrature points
+GEOMETRY_NODES_SLOT = 3
+MODEL_SLOT = 4  # registry id of the model
+EXTENSION_SLOT = 5  # registry id of the extension
+POSITIVE_ONLY_SLOT = 6  # 1.0: the energy is undefined at J <= 0
+PROJECT_SLOT = 7  # 1.0: SPD-projected tangent
+COUNTERS_SLOT = 8  # address (as float64 bits) of the path-counter row the kernels count into
+HEADER_SIZE = 9
+
+PARAMETER_COUNT = 4  # Material.parameters: [μ, λ, ε, k]
+PARAMETERS_START = HEADER_SIZE
+# Then: quadrature weights (points), basis derivatives (points × nodes × d), geometry
+# derivatives (points × geometry nodes × d).
+WEIGHTS_START = PARAMETERS_START + PARAMETER_COUNT
+
+#: Largest number of nodes per cell the kernels' stack scratch is sized for.
+MAX_NODES = 10
+
+
+def pack_constants(
+    tables: ReferenceTables,
+    dimension: int,
+    material,
+    project: bool,
+    counters: np.ndarray | None = None,
+) -> np.ndarray:
+    """Return the constants array the cell kernels read.
+
+    Parameters
+    ----------
+    tables
+        Quadrature weights and reference derivatives of the element and the geometry.
+    dimension
+        Space dimension, 2 or 3.
+    material
+        The :class:`~dolfinx_invertible.Material` whose ids and parameters go in.
+    project
+        Initial state of the projection switch.
+    counters
+        Row of :data:`~dolfinx_invertible.fem.kernels.counters.PATH_COUNTERS` the kernels
+        count into; ``None`` for no counting.
+    """
+    points, nodes, _ = tables.basis_derivatives.shape
+    geometry_nodes = tables.geometry_derivatives.shape[1]
+    if max(nodes, geometry_nodes) > MAX_NODES:
+        largest = max(nodes, geometry_nodes)
+        raise ValueError(f"the kernels support at most {MAX_NODES} nodes per cell, got {largest}")
+    address = 0.0
+    if counters is not None:
+        address = np.array([counters.ctypes.data], dtype=np.int64).view(np.float64)[0]
+    header = np.zeros(HEADER_SIZE)
+    header[DIMENSION_SLOT] = dimension
+    header[NODES_SLOT] = nodes
+    header[POINTS_SLOT] = points
+    header[GEOMETRY_NODES_SLOT] = geometry_nodes
+    header[MODEL_SLOT] = material.model.model_id
+    header[EXTENSION_SLOT] = material.extension_id
+    header[POSITIVE_ONLY_SLOT] = float(material.positive_only)
+    header[PROJECT_SLOT] = float(project)
+    header[COUNTERS_SLOT] = address
+    return np.concatenate(
+        [
+            header,
+            material.parameters,
+            tables.weights,
+            tables.basis_derivatives.ravel(),
+            tables.geometry_derivatives.ravel(),
+        ]
+    )

@@ -1,0 +1,180 @@
+"""A hyperelastic problem for an existing DOLFINx script: material + BCs + extra UFL terms."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import Any
+
+from mpi4py import MPI
+
+import dolfinx
+import numpy as np
+import ufl
+
+from dolfinx_invertible.constitutive.material import Material
+from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
+from dolfinx_invertible.fem.forms import HyperelasticForms
+from dolfinx_invertible.solvers.newton import EnergyMinimizer
+from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX
+from dolfinx_invertible.solvers.problem import EnergyProblem
+from dolfinx_invertible.solvers.results import SolveResult
+from dolfinx_invertible.solvers.step_limit import InversionFreeStep
+
+__all__ = ["HyperelasticProblem", "external_forms"]
+
+
+def external_forms(u, energy) -> tuple[Any, Any, Any | None]:
+    """Compiled (energy, residual, jacobian) of a UFL potential in ``u``; jacobian None if zero.
+
+    A potential linear in ``u`` (a dead load) has a zero second derivative, which UFL reduces to
+    an empty form that DOLFINx cannot compile; it then contributes nothing to the tangent.
+    """
+    residual = ufl.derivative(energy, u)
+    jacobian = ufl.derivative(residual, u)
+    jacobian_is_zero = ufl.algorithms.expand_derivatives(jacobian).empty()
+    return (
+        dolfinx.fem.form(energy),
+        dolfinx.fem.form(residual),
+        None if jacobian_is_zero else dolfinx.fem.form(jacobian),
+    )
+
+
+class HyperelasticProblem:
+    """Minimise ∫Ψ(F) dX + (extra UFL potential) over ``u`` subject to Dirichlet conditions.
+
+    Parameters
+    ----------
+    u
+        Displacement (vector P1/P2 Lagrange); holds the initial guess and, after
+        :meth:`solve`, the solution.
+    material
+        The :class:`~dolfinx_invertible.Material`.
+    bcs
+        ``dolfinx.fem.DirichletBC`` objects on the space of ``u``.
+    external_energy
+        A UFL scalar form in ``u`` added to the elastic energy: loads as potentials, e.g.
+        ``-ufl.dot(traction, u) * ds`` or ``-ufl.dot(body_force, u) * dx``, springs, penalties.
+        Its residual and tangent come from ``ufl.derivative`` and are assembled into the same
+        PETSc vector and matrix as the elastic kernels.
+    quadrature_degree
+        See :class:`~dolfinx_invertible.fem.forms.HyperelasticForms`.
+    project
+        ``True``: always the SPD-projected tangent (robust, but Newton then converges only
+        linearly wherever the exact tangent is indefinite, e.g. under compression);
+        ``False``: always the exact tangent (quadratic convergence; CG may fail where the
+        energy is not locally convex); ``"auto"`` (default): every solve first runs with the
+        exact tangent and, only if that fails, again from the same start with the projected
+        one. ``result.tangent`` says which one produced the result.
+    petsc_options, options_prefix, pc
+        See :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`; command-line options
+        with the prefix override everything.
+    inversion_free
+        If given (a fraction in (0, 1), 0.1 in the classical method), cap every Newton step so
+        that no quadrature point's volume falls below that fraction of its current value
+        (:class:`~dolfinx_invertible.solvers.step_limit.InversionFreeStep`); meant for plain barrier
+        energies such as Neo-Hookean without extension, started from an uninverted state.
+
+    Attributes
+    ----------
+    forms
+        The :class:`~dolfinx_invertible.fem.forms.HyperelasticForms` of the material.
+    energy_problem, solver
+        The :class:`~dolfinx_invertible.solvers.problem.EnergyProblem` that assembles the
+        summed forms and the :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`.
+    """
+
+    def __init__(
+        self,
+        u,
+        material: Material,
+        bcs: Sequence[Any] = (),
+        *,
+        external_energy=None,
+        quadrature_degree: int | None = None,
+        project: bool | str = "auto",
+        petsc_options: dict[str, Any] | None = None,
+        options_prefix: str = DEFAULT_OPTIONS_PREFIX,
+        pc: str = "gamg",
+        inversion_free: float | None = None,
+    ):
+        mesh = u.function_space.mesh
+        if project not in (True, False, "auto"):
+            raise ValueError(f"project must be True, False or 'auto', got {project!r}")
+        self.project = project
+        # The forms validate the space and geometry first: the volume check assumes both.
+        self.forms = HyperelasticForms(
+            u, material, quadrature_degree=quadrature_degree, project=project is True
+        )
+        check_mesh(mesh)
+        bcs = list(bcs)
+        check_boundary_conditions(bcs, mesh.comm)
+        local_finite = bool(np.all(np.isfinite(u.x.array)))
+        if not mesh.comm.allreduce(local_finite, op=MPI.LAND):
+            raise ValueError("the initial displacement u contains NaN or Inf values")
+        self.u = u
+        has_energy = material.extension is None or material.extension.has_energy
+        energy = [self.forms.energy] if has_energy else []
+        residual = [self.forms.residual]
+        jacobian = [self.forms.jacobian]
+        if external_energy is not None:
+            extra_energy, extra_residual, extra_jacobian = external_forms(u, external_energy)
+            if has_energy:
+                energy.append(extra_energy)
+            residual.append(extra_residual)
+            if extra_jacobian is not None:
+                jacobian.append(extra_jacobian)
+        self.energy_problem = EnergyProblem(u, energy, residual, jacobian, bcs)
+        step_limit = None
+        if inversion_free is not None:
+            step_limit = InversionFreeStep(
+                u, inversion_free, quadrature_degree=self.forms.quadrature_degree
+            )
+        self.solver = EnergyMinimizer(
+            self.energy_problem,
+            petsc_options=petsc_options,
+            options_prefix=options_prefix,
+            pc=pc,
+            step_limit=step_limit,
+        )
+
+    def solve(self) -> SolveResult:
+        """Solve from the current ``u``; return a :class:`~dolfinx_invertible.SolveResult`.
+
+        On failure ``u`` keeps its value from before the call (see ``result.converged``).
+        ``result.svd_share`` says how often the kernels needed the SVD during the solve.
+        """
+        self.forms.reset_path_counts()
+        result = self._solve()
+        counts = self.forms.path_counts()
+        # One reduction for all kernels: rows (points, points through the SVD).
+        totals = self.u.function_space.mesh.comm.allreduce(
+            np.array(list(counts.values())), op=MPI.SUM
+        )
+        shares = {
+            kind: float(svd_points / points) if points > 0 else None
+            for kind, (points, svd_points) in zip(counts, totals, strict=True)
+        }
+        return dataclasses.replace(result, svd_share=shares)
+
+    def _solve(self) -> SolveResult:
+        if self.project != "auto":
+            result = self.solver.solve()
+            return dataclasses.replace(result, tangent="projected" if self.project else "exact")
+        self.forms.set_projection(False)
+        exact = self.solver.solve()
+        if exact.converged:
+            return dataclasses.replace(exact, tangent="exact")
+        self.forms.set_projection(True)
+        try:
+            projected = self.solver.solve()
+        finally:
+            self.forms.set_projection(False)
+        # Report the work of both attempts: that is what the step cost.
+        return dataclasses.replace(
+            projected,
+            tangent="projected",
+            newton_iterations=exact.newton_iterations + projected.newton_iterations,
+            linear_iterations=exact.linear_iterations + projected.linear_iterations,
+            wall_time=exact.wall_time + projected.wall_time,
+        )

@@ -1,0 +1,174 @@
+"""The form-sum assembler: Π(u), its gradient and tangent as sums of compiled DOLFINx forms.
+
+Forms of any origin are summed: UFL forms compiled by ``dolfinx.fem.form`` and forms built around
+custom cell kernels alike. Dirichlet conditions are applied the way DOLFINx's own
+``NonlinearProblem`` applies them.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+from mpi4py import MPI
+
+import dolfinx.fem
+import dolfinx.fem.petsc
+import numpy as np
+from petsc4py import PETSc
+
+from dolfinx_invertible import _compat
+
+__all__ = ["EnergyProblem"]
+
+
+def _as_form_list(forms: Any, rank: int, name: str) -> list:
+    if forms is None:
+        forms = []
+    elif not isinstance(forms, (list, tuple)):
+        forms = [forms]
+    forms = list(forms)
+    for form in forms:
+        if getattr(form, "rank", rank) != rank:
+            raise ValueError(
+                f"{name}: expected compiled forms of rank {rank}, got rank {form.rank}"
+            )
+    return forms
+
+
+class EnergyProblem:
+    """Assembles a potential Π(u), its gradient and its tangent from sums of compiled forms.
+
+    The callbacks have the signatures PETSc SNES expects. Each copies the iterate into ``u``
+    (owned values, then a forward ghost update) before assembling, so the forms, whose
+    coefficient is ``u``, see the iterate.
+
+    Parameters
+    ----------
+    u
+        The unknown displacement; the forms must depend on it.
+    energy
+        Compiled scalar forms whose sum is Π(u). ``None`` or empty for materials that only define
+        a stress; :class:`EnergyMinimizer` then uses a line search on the residual norm.
+    residual
+        Compiled linear forms whose sum is dΠ/du (or the stress residual).
+    jacobian
+        Compiled bilinear forms whose sum is the tangent; all on the space of ``u``. The first
+        one sets the sparsity pattern (see :meth:`create_matrix`).
+    bcs
+        Dirichlet conditions on the space of ``u``.
+    """
+
+    def __init__(
+        self,
+        u: dolfinx.fem.Function,
+        energy: Sequence[Any] | Any | None,
+        residual: Sequence[Any] | Any,
+        jacobian: Sequence[Any] | Any,
+        bcs: Sequence[Any] | None = None,
+    ) -> None:
+        self.u = u
+        self.energy_forms = _as_form_list(energy, 0, "energy")
+        self.residual_forms = _as_form_list(residual, 1, "residual")
+        self.jacobian_forms = _as_form_list(jacobian, 2, "jacobian")
+        if not self.residual_forms:
+            raise ValueError("residual: at least one compiled linear form is required")
+        if not self.jacobian_forms:
+            raise ValueError("jacobian: at least one compiled bilinear form is required")
+        self.bcs = list(bcs or [])
+        self.comm = u.function_space.mesh.comm
+        self._u_vector = _compat.petsc_vector(u)
+        self._pattern_checked = False
+
+    @property
+    def has_energy(self) -> bool:
+        """Whether energy forms were given, i.e. whether :meth:`objective` can be evaluated."""
+        return bool(self.energy_forms)
+
+    def create_vector(self) -> PETSc.Vec:
+        """Return a ghosted vector laid out like the dofs of ``u``."""
+        return _compat.create_vector(self.residual_forms[0])
+
+    def create_matrix(self) -> PETSc.Mat:
+        """Return a matrix with the sparsity pattern of the first jacobian form.
+
+        Cell and exterior-facet integrals of further forms on the same space fall inside that
+        pattern, because every facet belongs to a cell. Interior-facet integrals couple the dofs
+        of neighbouring cells, which a cell-only pattern lacks; PETSc is allowed to allocate such
+        entries rather than fail, and :meth:`J` warns once if it had to.
+        """
+        matrix = _compat.create_matrix(self.jacobian_forms[0])
+        if len(self.jacobian_forms) > 1:
+            matrix.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        return matrix
+
+    def update_solution(self, x: PETSc.Vec) -> None:
+        """Copy the owned values of ``x`` into ``u`` and update the ghosts of ``u``."""
+        if x.handle != self._u_vector.handle:
+            x.copy(self._u_vector)
+        self.u.x.scatter_forward()
+
+    def energy_terms(self) -> np.ndarray:
+        """Return the value of each energy form at the current ``u``, summed over all ranks."""
+        local = np.array(
+            [dolfinx.fem.assemble_scalar(form) for form in self.energy_forms], dtype=np.float64
+        )
+        return self.comm.allreduce(local, op=MPI.SUM)
+
+    def total_energy(self) -> float | None:
+        """Π at the current ``u``, summed over all ranks; ``None`` without energy forms.
+
+        An undefined energy (NaN, e.g. the logarithm of a negative Jacobian determinant) is
+        reported as +inf, so a line search treats the state as infinitely bad and backtracks.
+        """
+        if not self.has_energy:
+            return None
+        total = float(np.sum(self.energy_terms()))
+        return total if not math.isnan(total) else math.inf
+
+    def objective(self, snes: PETSc.SNES | None, x: PETSc.Vec) -> float:
+        """SNES objective: Π at ``x``."""
+        if not self.has_energy:
+            raise ValueError("this problem has no energy forms, so no objective")
+        self.update_solution(x)
+        return self.total_energy()
+
+    def F(self, snes: PETSc.SNES | None, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        """SNES residual: dΠ/du at ``x`` into ``b``, Dirichlet rows holding ``x - g``."""
+        self.update_solution(x)
+        with b.localForm() as b_local:
+            b_local.set(0.0)
+        for form in self.residual_forms:
+            dolfinx.fem.petsc.assemble_vector(b, form)
+        # The ghosted u rather than x: lifting reads ghost values, and x need not carry them.
+        _compat.lift_residual(b, self.jacobian_forms, self.bcs, self._u_vector)
+
+    def J(self, snes: PETSc.SNES | None, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
+        """SNES Jacobian: the summed tangent at ``x`` into ``A`` (and ``P`` if distinct).
+
+        Dirichlet rows and columns are zero with 1 on the diagonal, exactly once: DOLFINx inserts
+        rather than adds the diagonal, so every form but the last is assembled with diagonal 0
+        and the last with 1, which yields 1 whether the diagonal is inserted or added.
+        """
+        self.update_solution(x)
+        matrices = [A] if P is None or P.handle == A.handle else [A, P]
+        last = len(self.jacobian_forms) - 1
+        for matrix in matrices:
+            matrix.zeroEntries()
+            for index, form in enumerate(self.jacobian_forms):
+                diagonal = 1.0 if index == last else 0.0
+                _compat.assemble_matrix_into(matrix, form, self.bcs, diagonal)
+            matrix.assemble()
+        if not self._pattern_checked and len(self.jacobian_forms) > 1:
+            self._pattern_checked = True
+            mallocs = A.getInfo()["mallocs"]
+            if mallocs > 0:
+                warnings.warn(
+                    f"the jacobian forms needed {int(mallocs)} allocations beyond the sparsity "
+                    "pattern of the first form (interior-facet integrals?); pass the form with "
+                    "the widest coupling first",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )

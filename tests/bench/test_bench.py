@@ -1,0 +1,105 @@
+"""Smoke tests of the benchmark tools at tiny sizes: their reports have the fields the README and
+the table printers rely on, and the UFL and kernel routes agree. Nothing here asserts a timing.
+
+Collective, so they also run under mpirun; the ones that launch child processes (mpirun
+themselves) are serial only.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from dolfinx_invertible.bench import assembly as bench_assembly
+from dolfinx_invertible.bench import compile as bench_compile
+from dolfinx_invertible.bench import memory as bench_memory
+from dolfinx_invertible.bench import points as bench_points
+from dolfinx_invertible.bench import scaling as bench_scaling
+from dolfinx_invertible.bench import solve as bench_solve
+
+OPERATIONS = ("residual", "tangent", "newton_step")
+
+
+@pytest.mark.mpi
+def test_assembly_report_has_every_case_and_the_newton_step():
+    report = bench_assembly.run(cells=2, repeats=1)
+    json.dumps(report)
+    assert set(report["meshes"]) == {"P1", "P2"}
+    for mesh in report["meshes"].values():
+        assert set(mesh["ratios"]) == set(OPERATIONS)
+        for operation in OPERATIONS:
+            assert set(mesh["ratios"][operation]) == {"b/a", "c/a", "c/d"}
+        assert mesh["ratios"]["newton_step"]["c/d"] is None  # no Newton step of a zero matrix
+        assert mesh["median_seconds"]["d_zero"]["newton_step"] is None
+        for name in ("a_ufl", "b_fast", "c_svd"):
+            assert mesh["krylov_iterations"][name]["converged"]
+            assert mesh["median_seconds"][name]["newton_step"] > 0.0
+        assert mesh["extension_share"]["b_fast"] == 0.0
+        assert mesh["extension_share"]["c_svd"] == 1.0
+    assert bench_assembly.table(report)
+
+
+@pytest.mark.mpi
+def test_solve_routes_agree():
+    report = bench_solve.run(cells=4, thickness_cells=1, steps=2, repeats=1)
+    json.dumps(report)
+    assert report["relative_displacement_difference"] <= 1.0e-6
+    assert report["agreement_ok"]
+    assert report["tip_vertical_displacement"] > 1.0  # the load does something
+    for route in report["routes"].values():
+        assert route["newton_iterations"] >= route["load_steps_taken"] == 2
+        assert len(route["all_seconds"]) == 1
+    assert report["ratio_ours_over_ufl"] > 0.0
+    assert bench_solve.table(report)
+
+
+@pytest.mark.mpi
+def test_scaling_measurement():
+    result = bench_scaling.measure(cells=3, repeats=1)
+    json.dumps(result)
+    assert result["dofs"] == 4**3 * 3
+    for name in bench_scaling.DEFAULT_CASES:
+        assert set(result["median_seconds"][name]) == set(OPERATIONS)
+
+
+@pytest.mark.mpi
+def test_compile_first_assembly_is_reproducible():
+    phases, first = bench_compile.first_assembly(cells=3)
+    _, second = bench_compile.first_assembly(cells=3)
+    assert list(phases) == ["python_started", "imported", "forms_built", "assembled"]
+    # Two meshes built one after the other may be partitioned differently under MPI, which
+    # changes the order of the ghost sums: equal to round-off, not bitwise.
+    assert bench_compile.relative_difference(first, second) <= 1.0e-12
+
+
+@pytest.mark.mpi
+def test_memory_measurement():
+    result = bench_memory.measure(cells=3)
+    json.dumps(result)
+    assert result["krylov_converged"]
+    assert set(result["seconds_since_start"]) == set(bench_memory.STAGES)
+
+
+def test_scaling_and_memory_in_child_processes():
+    scaling = bench_scaling.run(cells=3, repeats=1, ranks=(1,), cases=("b_fast",))
+    assert scaling["speed_up"]["b_fast/tangent"]["1"] == 1.0
+    assert bench_scaling.table(scaling)
+    memory = bench_memory.run(cells=3)
+    peaks = [memory["peak_rss_bytes_total"][name] for name in bench_memory.STAGES]
+    assert peaks == sorted(peaks) and peaks[0] > 0  # ru_maxrss never decreases
+    assert bench_memory.table(memory)
+
+
+@pytest.mark.mpi
+def test_points_report_covers_every_stage_and_the_paths_taken():
+    report = bench_points.run(points=200, repeats=1)
+    json.dumps(report)
+    fast, extension = (report["stages"][state] for state in bench_points.STRETCHES)
+    assert set(fast) == set(extension)
+    assert all(entry["nanoseconds_per_point"] > 0.0 for entry in fast.values())
+    # Away from the threshold energy and stress never need the SVD; inside it they always do.
+    for stage in ("point energy", "point stress", "point tangent, exact"):
+        assert fast[stage]["svd_share"] == 0.0
+        assert extension[stage]["svd_share"] == 1.0
+    assert bench_points.table(report)

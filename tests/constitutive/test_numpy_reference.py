@@ -1,0 +1,205 @@
+"""The numba material against the independent NumPy reference, and the reference against itself.
+
+The reference (:mod:`dolfinx_invertible.bench.reference`) is first checked on its own: its stress,
+Hessian and tangent must be finite differences of its energy and stress. Only then is it a fair
+judge of the compiled :class:`dolfinx_invertible.Material`, which must agree with it to 1e-9
+relative on random points in 2D and 3D, inverted ones and ones on both sides of J = eps included.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from dolfinx_invertible import C2, Material, NeoHookean
+from dolfinx_invertible.bench import reference as reference
+
+EPS = 0.9
+# A compressible and a nearly incompressible parameter set (E = 1, nu = 0.3 and 0.45).
+PARAMETERS = [(0.3846153846153846, 0.5769230769230769), (0.3448275862068966, 3.103448275862069)]
+AGREEMENT = 1e-9
+# Central differences with step 1e-6 are accurate to about 1e-9 relative here; 1e-6 leaves room
+# while still catching any wrong term (those show up at 1e-2 or worse).
+FINITE_DIFFERENCE = 1e-6
+# The Hessian is continuous across J = EPS but its derivative jumps there, so a central difference
+# of the stress that straddles the threshold is only first-order accurate (error ~ STEP).
+STRADDLING_FINITE_DIFFERENCE = 1e-5
+STEP = 1e-6
+
+
+def _random_rotations(rng: np.random.Generator, count: int, dimension: int) -> np.ndarray:
+    Q, R = np.linalg.qr(rng.standard_normal((count, dimension, dimension)))
+    Q = Q * np.sign(np.diagonal(R, axis1=1, axis2=2))[:, None, :]
+    Q[np.linalg.det(Q) < 0, :, 0] *= -1.0
+    return Q
+
+
+def sample_deformations(dimension: int, seed: int = 0) -> np.ndarray:
+    """Random F: generic, inverted, J just above and below EPS, repeated singular values."""
+    rng = np.random.default_rng(seed)
+    generic = np.eye(dimension) + 0.35 * rng.standard_normal((120, dimension, dimension))
+    reflection = np.eye(dimension)
+    reflection[0, 0] = -1.0
+    inverted = (np.eye(dimension) + 0.3 * rng.standard_normal((40, dimension, dimension))) @ (
+        reflection
+    )
+    # J = EPS * (1 + offset) with offsets on both sides of the threshold, near and far.
+    offsets = np.array([-0.3, -1e-3, -1e-6, 1e-6, 1e-3, 0.3])
+    stretches = rng.uniform(0.6, 1.4, (offsets.size * 5, dimension))
+    target = EPS * np.tile(1.0 + offsets, 5)
+    stretches *= (target / np.prod(stretches, axis=1))[:, None] ** (1.0 / dimension)
+    U = _random_rotations(rng, stretches.shape[0], dimension)
+    V = _random_rotations(rng, stretches.shape[0], dimension)
+    threshold = np.einsum("nik,nk,njk->nij", U, stretches, V)
+    # Repeated singular values (the a_ij limit) on both sides of the threshold, plus inverted ones.
+    if dimension == 2:
+        repeated_stretches = np.array([[1.1, 1.1], [0.8, 0.8], [0.5, 0.5], [0.7, -0.4]])
+    else:
+        repeated_stretches = np.array(
+            [[1.05, 1.05, 1.05], [0.5, 0.5, 0.5], [1.2, 1.2, 0.3], [0.9, 0.9, -0.5]]
+        )
+    U = _random_rotations(rng, repeated_stretches.shape[0], dimension)
+    V = _random_rotations(rng, repeated_stretches.shape[0], dimension)
+    repeated = np.einsum("nik,nk,njk->nij", U, repeated_stretches, V)
+    F = np.concatenate([generic, inverted, threshold, repeated])
+    assert np.any(np.linalg.det(F) < 0) and np.any(np.linalg.det(F) > EPS)
+    return F
+
+
+def _near_threshold(determinants: np.ndarray) -> np.ndarray:
+    """Points whose finite-difference stencil may cross J = EPS."""
+    near = np.abs(determinants / EPS - 1.0) < 1e-4
+    assert np.any(near) and not np.all(near)
+    return near
+
+
+def _central_difference(function, x: np.ndarray) -> np.ndarray:
+    """Derivative of a batched function (n, ...) -> (n, ...) in every entry of x (n, ...)."""
+    count = x.shape[0]
+    flat = x.reshape(count, -1)
+    columns = []
+    for index in range(flat.shape[1]):
+        plus = flat.copy()
+        minus = flat.copy()
+        plus[:, index] += STEP
+        minus[:, index] -= STEP
+        difference = function(plus.reshape(x.shape)) - function(minus.reshape(x.shape))
+        columns.append(difference.reshape(count, -1) / (2.0 * STEP))
+    return np.stack(columns, axis=-1)
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+@pytest.mark.parametrize("mu, lam", PARAMETERS)
+def test_reference_stress_is_derivative_of_energy(dimension, mu, lam):
+    F = sample_deformations(dimension)
+    stress = reference.stress(F, mu, lam, EPS)
+    numerical = _central_difference(lambda G: reference.energy(G, mu, lam, EPS), F)
+    assert reference.max_relative_difference(numerical.reshape(F.shape), stress) < (
+        FINITE_DIFFERENCE
+    )
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+@pytest.mark.parametrize("mu, lam", PARAMETERS)
+def test_reference_tangent_is_derivative_of_stress(dimension, mu, lam):
+    F = sample_deformations(dimension)
+    tangent = reference.tangent(F, mu, lam, EPS, project=False)
+    numerical = _central_difference(lambda G: reference.stress(G, mu, lam, EPS), F)
+    near = _near_threshold(np.linalg.det(F))
+    assert reference.max_relative_difference(numerical[~near], tangent[~near]) < FINITE_DIFFERENCE
+    assert reference.max_relative_difference(numerical[near], tangent[near]) < (
+        STRADDLING_FINITE_DIFFERENCE
+    )
+    projected = reference.tangent(F, mu, lam, EPS, project=True)
+    scale = np.abs(projected).max(axis=(1, 2))
+    assert np.all(np.linalg.eigvalsh(projected).min(axis=1) >= -1e-12 * scale)
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_reference_sigma_derivatives(dimension):
+    mu, lam = PARAMETERS[1]
+    _, sigma, _ = reference.polar_svd(sample_deformations(dimension, seed=1))
+    gradient = reference.stress_sigma(sigma, mu, lam, EPS)
+    hessian = reference.hessian_sigma(sigma, mu, lam, EPS)
+    numerical_gradient = _central_difference(
+        lambda s: reference.energy_sigma(s, mu, lam, EPS)[:, None], sigma
+    )[:, 0, :]
+    numerical_hessian = _central_difference(
+        lambda s: reference.stress_sigma(s, mu, lam, EPS), sigma
+    )
+    assert reference.max_relative_difference(numerical_gradient, gradient) < FINITE_DIFFERENCE
+    near = _near_threshold(np.prod(sigma, axis=1))
+    assert reference.max_relative_difference(numerical_hessian[~near], hessian[~near]) < (
+        FINITE_DIFFERENCE
+    )
+    assert reference.max_relative_difference(numerical_hessian[near], hessian[near]) < (
+        STRADDLING_FINITE_DIFFERENCE
+    )
+
+
+def test_reference_root_is_smallest_root():
+    rng = np.random.default_rng(2)
+    sigma = rng.uniform(-0.8, 1.5, (60, 3))
+    sigma = sigma[np.prod(sigma, axis=1) < EPS]
+    a = sigma - 1.0
+    roots = reference.c2_root(a, EPS)
+    for a_point, root in zip(a, roots):
+        # prod(1 + t a_i) - eps as a polynomial in t, highest power first.
+        polynomial = functools.reduce(np.polymul, [[value, 1.0] for value in a_point])
+        polynomial[-1] -= EPS
+        candidates = np.roots(polynomial)
+        real = candidates[np.abs(candidates.imag) < 1e-9].real
+        assert root == pytest.approx(np.min(real[(real > 0) & (real < 1)]), abs=1e-12)
+
+
+def test_reference_polar_svd():
+    F = sample_deformations(3)
+    U, sigma, V = reference.polar_svd(F)
+    assert np.allclose(np.einsum("nik,nk,njk->nij", U, sigma, V), F, atol=1e-13)
+    assert np.allclose(np.linalg.det(U), 1.0) and np.allclose(np.linalg.det(V), 1.0)
+    assert np.all(np.sum(sigma < 0, axis=1) == (np.linalg.det(F) < 0))
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+@pytest.mark.parametrize("mu, lam", PARAMETERS)
+def test_numba_matches_reference(dimension, mu, lam):
+    F = sample_deformations(dimension, seed=3)
+    material = Material(NeoHookean(mu=mu, lam=lam), extension=C2(eps=EPS))
+    pairs = {
+        "energy": (material.energy(F), reference.energy(F, mu, lam, EPS)),
+        "stress": (material.stress(F), reference.stress(F, mu, lam, EPS)),
+        "projected tangent": (
+            material.tangent(F, project=True),
+            reference.tangent(F, mu, lam, EPS, project=True),
+        ),
+        "exact tangent": (
+            material.tangent(F, project=False),
+            reference.tangent(F, mu, lam, EPS, project=False),
+        ),
+    }
+    differences = {
+        name: reference.max_relative_difference(numba_result, numpy_result)
+        for name, (numba_result, numpy_result) in pairs.items()
+    }
+    assert all(value < AGREEMENT for value in differences.values()), differences
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_numba_sigma_functions_match_reference(dimension):
+    mu, lam = PARAMETERS[0]
+    _, sigma, _ = reference.polar_svd(sample_deformations(dimension, seed=4))
+    material = Material(NeoHookean(mu=mu, lam=lam), extension=C2(eps=EPS))
+    differences = {
+        "energy_sigma": reference.max_relative_difference(
+            material.energy_sigma(sigma), reference.energy_sigma(sigma, mu, lam, EPS)
+        ),
+        "stress_sigma": reference.max_relative_difference(
+            material.stress_sigma(sigma), reference.stress_sigma(sigma, mu, lam, EPS)
+        ),
+        "hessian_sigma": reference.max_relative_difference(
+            material.hessian_sigma(sigma), reference.hessian_sigma(sigma, mu, lam, EPS)
+        ),
+    }
+    assert all(value < AGREEMENT for value in differences.values()), differences

@@ -1,0 +1,94 @@
+"""The registries are the one source of ids: every registered model and extension is dispatched
+to its own module, and the batch API needs no DOLFINx."""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from constitutive_helpers import LAM, MU
+
+import dolfinx_invertible as di
+from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.extensions import EXTENSIONS, c1, c2, ife
+from dolfinx_invertible.constitutive.models import MODELS
+from dolfinx_invertible.constitutive.models import registry as model_registry
+from dolfinx_invertible.constitutive.principal import principal_derivatives
+
+
+def test_ids_are_positions():
+    assert [model.model_id for model in MODELS] == list(range(len(MODELS)))
+    assert EXTENSIONS[0] is None
+    assert [extension.extension_id for extension in EXTENSIONS[1:]] == list(
+        range(1, len(EXTENSIONS))
+    )
+    assert len({model.__module__ for model in MODELS}) == len(MODELS)
+
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda model: model.__name__)
+def test_every_model_is_dispatched_to_its_module(model, rng):
+    module = sys.modules[model.__module__]
+    sigma = rng.uniform(0.5, 1.5, 3)
+    f_own, h_own, f_registry, h_registry = (np.zeros((3, 5)) for _ in range(4))
+    module.tables(sigma, MU, LAM, f_own, h_own)
+    model_registry._tables(model.model_id, sigma, MU, LAM, f_registry, h_registry)
+    assert np.array_equal(f_own, f_registry) and np.array_equal(h_own, h_registry)
+    assert module.constants(MU, LAM) == model_registry._constants(model.model_id, MU, LAM)
+    assert module.slopes(sigma[0], sigma[1], MU, LAM) == model_registry._slopes(
+        model.model_id, sigma[0], sigma[1], MU, LAM
+    )
+    # Models written in invariants, and only those, take the SVD-free path.
+    available, *terms = model_registry.model_invariant_terms(
+        model.model_id, 3.1, 3.3, 1.05, 3, np.array([MU, LAM])
+    )
+    assert available == hasattr(module, "invariant_terms")
+    if available:
+        assert tuple(terms) == module.invariant_terms(3.1, 3.3, 1.05, 3, MU, LAM)
+
+
+EXTENSION_FUNCTIONS = {
+    "C1": c1.c1_derivatives,
+    "C2": c2.c2_derivatives,
+    "IFE": ife.ife_derivatives,
+}
+
+
+@pytest.mark.parametrize("extension", EXTENSIONS[1:], ids=lambda extension: extension.__name__)
+def test_every_extension_is_dispatched_to_its_module(extension):
+    own = EXTENSION_FUNCTIONS[extension.__name__]
+    sigma = np.array([0.3, 0.8, 0.95])  # inside every extension's region
+    model = di.NeoHookean(mu=MU, lam=LAM)
+    material = di.Material(model, extension())
+    results = []
+    for function in (
+        lambda work: principal_derivatives(
+            model.model_id, extension.extension_id, False, sigma, material.parameters, 2, work
+        ),
+        lambda work: own(model.model_id, sigma, material.parameters, 2, work),
+    ):
+        work = np.zeros(ws.WORKSPACE_SIZE)
+        energy, region = function(work)
+        results.append((energy, region, work[ws.G : ws.G + 3].copy(), work[ws.H : ws.H + 9].copy()))
+    (e1, r1, g1, h1), (e2, r2, g2, h2) = results
+    assert r1 == r2 > 0
+    assert e1 == e2 and np.array_equal(g1, g2) and np.array_equal(h1, h2)
+
+
+def test_batch_api_never_loads_dolfinx():
+    script = textwrap.dedent(
+        """
+        import sys
+        import numpy as np
+        import dolfinx_invertible as di
+        m = di.Material(di.NeoHookean(mu=1.0, lam=2.0), extension=di.C2())
+        F = np.diag([1.0, 1.0, -0.5])
+        m.energy(F), m.stress(F), m.tangent(F)
+        loaded = [name for name in ("dolfinx", "petsc4py", "ufl", "basix") if name in sys.modules]
+        assert not loaded, loaded
+        """
+    )
+    completed = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600
+    )
+    assert completed.returncode == 0, completed.stderr[-2000:]

@@ -1,0 +1,178 @@
+"""polar_svd: F = U diag(sigma) V^T with rotations U, V and signed sigma."""
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from constitutive_helpers import compose, matrices_with_sigma, random_rotations, random_sigma
+
+from dolfinx_invertible import polar_svd
+
+# Backward-stable SVDs reconstruct F to a few ulp of |F|; 1e-12 leaves room for 3x3 Jacobi
+# sweeps and the sign fix-up while still catching any real error (which would be O(1)).
+RECON_RTOL = 1e-12
+ORTHO_TOL = 1e-12
+
+
+def check_polar_svd(F):
+    """The contract's invariants; returns (U, sigma, V)."""
+    n, d, _ = F.shape
+    U, sigma, V = polar_svd(F)
+    assert U.shape == (n, d, d) and V.shape == (n, d, d) and sigma.shape == (n, d)
+    assert np.all(np.isfinite(U)) and np.all(np.isfinite(V)) and np.all(np.isfinite(sigma))
+
+    recon = compose(sigma, U, V)
+    err = np.linalg.norm(recon - F, axis=(1, 2))
+    assert np.all(err <= RECON_RTOL * np.linalg.norm(F, axis=(1, 2))), err
+
+    eye = np.eye(d)
+    for W, name in ((U, "U"), (V, "V")):
+        ortho = np.linalg.norm(np.swapaxes(W, 1, 2) @ W - eye, axis=(1, 2))
+        assert np.all(ortho <= ORTHO_TOL), (name, ortho)
+        assert np.allclose(np.linalg.det(W), 1.0, atol=ORTHO_TOL), (name, np.linalg.det(W))
+
+    mags = np.abs(sigma)
+    scale = np.max(mags, axis=1, keepdims=True)
+    tol = 1e-13 * scale
+    # sorted by magnitude, descending
+    assert np.all(np.diff(mags, axis=1) <= tol), sigma
+    # at most one negative value, and it is (one of) the smallest in magnitude
+    neg = sigma < 0
+    assert np.all(neg.sum(axis=1) <= 1), sigma
+    rows, cols = np.nonzero(neg)
+    assert np.all(mags[rows, cols] <= mags[rows].min(axis=1) + tol[rows, 0]), sigma
+    # the sign of prod(sigma) is the sign of det F
+    detF = np.linalg.det(F)
+    clear = np.abs(detF) > 1e-10 * scale[:, 0] ** d
+    assert np.all(np.sign(np.prod(sigma, axis=1))[clear] == np.sign(detF)[clear]), sigma
+    return U, sigma, V
+
+
+def expected_sigma(sigma):
+    """Signed singular values the contract prescribes for F = R1 diag(sigma) R2^T."""
+    sigma = np.atleast_2d(sigma)
+    mags = -np.sort(-np.abs(sigma), axis=1)
+    flip = np.prod(np.sign(sigma), axis=1) < 0
+    mags[flip, -1] *= -1
+    return mags
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("inverted", [False, True])
+def test_random(rng, d, inverted):
+    F = rng.standard_normal((40, d, d))
+    detF = np.linalg.det(F)
+    F[(detF < 0) != inverted, :, 0] *= -1.0
+    assert np.all((np.linalg.det(F) < 0) == inverted)
+    _, sigma, _ = check_polar_svd(F)
+    ref = np.linalg.svd(F, compute_uv=False)
+    np.testing.assert_allclose(np.abs(sigma), ref, rtol=1e-12, atol=1e-14)
+    assert np.all((sigma[:, -1] < 0) == inverted)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("inverted", [False, True])
+def test_prescribed_sigma(rng, d, inverted):
+    sig = random_sigma(rng, 30, d, 0.1, 3.0, inverted=inverted, min_gap=1e-3)
+    F = matrices_with_sigma(rng, sig)
+    _, sigma, _ = check_polar_svd(F)
+    np.testing.assert_allclose(sigma, sig, rtol=1e-12, atol=1e-13)
+
+
+REPEATED_AND_SPECIAL = {
+    "repeated_2_2_05": (2.0, 2.0, 0.5),
+    "identity_rotated": (1.0, 1.0, 1.0),
+    "isotropic_3": (3.0, 3.0, 3.0),
+    "repeated_small": (1.5, 0.5, 0.5),
+    "repeated_inverted": (2.0, 2.0, -0.5),
+    "rank2": (2.0, 1.0, 0.0),
+    "rank2_repeated": (1.0, 1.0, 0.0),
+    "rank1": (3.0, 0.0, 0.0),
+    "reflection": (1.0, 1.0, -1.0),
+    "reflection_2d": (-1.0, 1.0),
+    "repeated_2d": (2.0, 2.0),
+    "rank1_2d": (2.0, 0.0),
+    "inverted_2d": (1.5, -0.5),
+}
+
+
+@pytest.mark.parametrize("case", sorted(REPEATED_AND_SPECIAL))
+@pytest.mark.parametrize("rotated", [False, True])
+def test_special_singular_values(rng, case, rotated):
+    sig = np.array(REPEATED_AND_SPECIAL[case], dtype=float)
+    d = sig.size
+    n = 20 if rotated else 1
+    if rotated:
+        F = matrices_with_sigma(rng, np.tile(sig, (n, 1)))
+    else:
+        F = np.diag(sig)[None]
+    _, sigma, _ = check_polar_svd(F)
+    expected = np.tile(expected_sigma(sig), (n, 1))
+    # Order among equal magnitudes is free (check_polar_svd checks the ordering rules), and zero
+    # singular values carry no sign: compare the sorted signed values with zeros made unsigned.
+    tol = 1e-13 * np.max(np.abs(sig))
+    got = np.where(np.abs(sigma) <= tol, 0.0, sigma)
+    np.testing.assert_allclose(np.sort(got, axis=1), np.sort(expected, axis=1), atol=tol)
+    assert d == F.shape[-1]
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_zero_matrix(d):
+    F = np.zeros((3, d, d))
+    U, sigma, V = check_polar_svd(F)
+    assert np.array_equal(sigma, np.zeros((3, d)))
+    np.testing.assert_array_equal(U, np.broadcast_to(np.eye(d), U.shape))
+    np.testing.assert_array_equal(V, np.broadcast_to(np.eye(d), V.shape))
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("scale", [1e-8, 1e8])
+def test_scaled(rng, d, scale):
+    """Relative accuracy does not depend on the magnitude of F."""
+    sig = np.concatenate(
+        [
+            random_sigma(rng, 10, d, 0.2, 2.0, min_gap=1e-2),
+            random_sigma(rng, 10, d, 0.2, 2.0, inverted=True, min_gap=1e-2),
+        ]
+    )
+    F = matrices_with_sigma(rng, sig) * scale
+    _, sigma, _ = check_polar_svd(F)
+    np.testing.assert_allclose(sigma, sig * scale, rtol=1e-12)
+
+
+def exact_det(F):
+    """det of a 3x3 float matrix in exact rational arithmetic."""
+    a = [[Fraction(float(x)) for x in row] for row in F]
+    return (
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    )
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_small_singular_values_relative_accuracy(rng, sign):
+    """diag(1, 1e-3, 1e-9) rotated: the tiny values must come out to 1e-6 relative accuracy.
+
+    An SVD through eigenvalues of F^T F loses sigma_3 = 1e-9 completely (sigma_3^2 = 1e-18 is below
+    the rounding of the O(1) entries). The reference for sigma_3 is |det F| of the *rounded* F,
+    computed exactly, divided by sigma_1 sigma_2 (both well conditioned); so rounding in building F
+    does not count against the implementation.
+    """
+    n = 20
+    sig = np.tile([1.0, 1e-3, sign * 1e-9], (n, 1))
+    F = compose(sig, random_rotations(rng, n, 3), random_rotations(rng, n, 3))
+    _, sigma, _ = polar_svd(F)
+    big = np.linalg.svd(F, compute_uv=False)[:, :2]
+    ref3 = np.array([float(exact_det(f)) for f in F]) / (big[:, 0] * big[:, 1])
+    np.testing.assert_allclose(sigma[:, :2], big, rtol=1e-9)
+    np.testing.assert_allclose(sigma[:, 2], ref3, rtol=1e-6)
+    np.testing.assert_allclose(sigma[:, 2], sign * 1e-9, rtol=1e-5)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_single_matrix(rng, d):
+    F = rng.standard_normal((d, d))
+    U, sigma, V = polar_svd(F)
+    assert U.shape == (d, d) and sigma.shape == (d,) and V.shape == (d, d)
+    np.testing.assert_allclose(U @ np.diag(sigma) @ V.T, F, atol=1e-13 * np.linalg.norm(F))

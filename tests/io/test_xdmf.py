@@ -1,0 +1,193 @@
+"""The XDMF/JSONL result writer, on real DOLFINx meshes.
+
+Runs serially and under mpirun: files are read back on rank 0 only, after a barrier, and the
+checks compare values through the coordinates rather than through any node or cell order.
+"""
+
+import json
+
+import numpy as np
+import pytest
+from dolfinx_helpers import (
+    COMM,
+    MATERIALS,
+    affine_displacement,
+    deformation,
+    read_series,
+    unit_mesh,
+)
+
+from dolfinx_invertible import _compat
+from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
+from dolfinx_invertible.io.xdmf import DISPLACEMENT_NAME, ResultWriter
+
+pytestmark = pytest.mark.mpi
+
+
+# --------------------------------------------------------------------------------------------
+# ResultWriter
+# --------------------------------------------------------------------------------------------
+def owned_midpoints(mesh):
+    """x coordinate of the midpoint of every owned cell, in local cell order."""
+    d = mesh.topology.dim
+    num_owned = mesh.topology.index_map(d).size_local
+    vertices = _compat.scalar_function_space(mesh, "Lagrange", 1)
+    coordinates = vertices.tabulate_dof_coordinates()
+    return coordinates[_compat.cell_dofs(vertices)[:num_owned]].mean(axis=1)[:, 0]
+
+
+def test_writer_round_trip(directory):
+    mesh = unit_mesh(2)
+    A = deformation(2, 0.8)
+    material = MATERIALS["C2"]()
+    path = directory / "series.xdmf"
+    times = [0.0, 0.5, 1.0]
+    with ResultWriter(path, mesh) as writer:
+        for step, t in enumerate(times):
+            u = affine_displacement(mesh, A, degree=2, scale=t)
+            diagnostics = cell_diagnostics(u, material)
+            diagnostics["midpoint_x"] = owned_midpoints(mesh)
+            record = {"newton_iterations": np.int64(step + 2), "wall_time": 0.1 * step}
+            record.update(summary(diagnostics, COMM))
+            writer.write(t, u, diagnostics, record=record)
+        assert writer.steps_written == 3
+    COMM.barrier()
+    if COMM.rank != 0:
+        return
+
+    points, cells, steps = read_series(path)
+    assert points.shape == (25, 2)  # XY geometry of a 2D mesh
+    assert sum(len(block.data) for block in cells) == 32
+    assert [t for t, _, _ in steps] == times
+    for t, point_data, cell_data in steps:
+        assert set(point_data) == {DISPLACEMENT_NAME}
+        assert set(cell_data) == {
+            "min_J",
+            "inverted",
+            "energy_density",
+            "min_singular_value",
+            "region",
+            "midpoint_x",
+        }
+        displacement = point_data[DISPLACEMENT_NAME]
+        expected = t * points[:, :2] @ (A - np.eye(2)).T
+        np.testing.assert_allclose(displacement[:, :2], expected, atol=1e-12)
+        np.testing.assert_array_equal(displacement[:, 2], 0.0)
+
+        # The cell data lines up with the topology read back.
+        midpoints = np.concatenate([points[block.data].mean(axis=1)[:, 0] for block in cells])
+        midpoint_x = np.concatenate(cell_data["midpoint_x"]).ravel()
+        np.testing.assert_allclose(midpoint_x, midpoints, atol=1e-12)
+        min_J = np.concatenate(cell_data["min_J"]).ravel()
+        np.testing.assert_allclose(min_J, np.linalg.det(np.eye(2) + t * (A - np.eye(2))))
+
+    lines = path.with_suffix(".jsonl").read_text().splitlines()
+    assert len(lines) == 3
+    for step, (line, t) in enumerate(zip(lines, times)):
+        entry = json.loads(line)
+        assert entry["step"] == step
+        assert entry["time"] == t
+        assert entry["newton_iterations"] == step + 2
+        assert entry["wall_time"] == pytest.approx(0.1 * step)
+        assert entry["cells"] == 32
+        assert entry["inverted_cells"] == 0
+
+
+def test_readable_after_failure(directory):
+    mesh = unit_mesh(2)
+    A = deformation(2, -0.5)
+    path = directory / "crashed.xdmf"
+    log_path = directory / "logs" / "crashed_steps.jsonl"
+    with pytest.raises(RuntimeError, match="simulated"):
+        with ResultWriter(path, mesh, log_path=log_path) as writer:
+            for t in (1.0, 2.0):
+                u = affine_displacement(mesh, A, scale=t)
+                writer.write(t, u, cell_diagnostics(u, MATERIALS["C1"]()), record={"t2": t * t})
+            raise RuntimeError("simulated solver failure")
+    COMM.barrier()
+    if COMM.rank != 0:
+        return
+
+    points, _, steps = read_series(path)
+    assert [t for t, _, _ in steps] == [1.0, 2.0]
+    assert set(steps[0][2]) >= {"min_J", "region"}
+    for t, point_data, _ in steps:
+        expected = t * points[:, :2] @ (A - np.eye(2)).T
+        np.testing.assert_allclose(point_data[DISPLACEMENT_NAME][:, :2], expected, atol=1e-12)
+    entries = [json.loads(line) for line in log_path.read_text().splitlines()]
+    assert [entry["t2"] for entry in entries] == [1.0, 4.0]
+
+
+def test_readable_while_open(directory):
+    """Each step is on disk and unlocked as soon as write returns (e.g. for ParaView)."""
+    mesh = unit_mesh(2)
+    path = directory / "live.xdmf"
+    with ResultWriter(path, mesh) as writer:
+        u = affine_displacement(mesh, deformation(2, 0.8))
+        writer.write(0.0, u)
+        COMM.barrier()
+        if COMM.rank == 0:
+            _, _, steps = read_series(path)
+            assert len(steps) == 1
+            assert set(steps[0][1]) == {DISPLACEMENT_NAME}
+        COMM.barrier()
+        writer.write(1.0, u)
+        COMM.barrier()
+        if COMM.rank == 0:
+            assert len(read_series(path)[2]) == 2
+        COMM.barrier()
+
+
+def test_wrong_length_diagnostic_names_key(directory):
+    mesh = unit_mesh(2)
+    u = affine_displacement(mesh, deformation(2, 0.8))
+    num_owned = mesh.topology.index_map(2).size_local
+    with ResultWriter(directory / "bad.xdmf", mesh) as writer:
+        with pytest.raises(ValueError, match="'too_long'"):
+            writer.write(0.0, u, {"good": np.zeros(num_owned), "too_long": np.zeros(num_owned + 1)})
+        # Only rank 0 wrong: every rank raises, none is left waiting in a collective write.
+        lengths = num_owned + 1 if COMM.rank == 0 else num_owned
+        with pytest.raises(ValueError, match="'only_rank_0'"):
+            writer.write(0.0, u, {"only_rank_0": np.zeros(lengths)})
+        with pytest.raises(ValueError, match="'two_d'"):
+            writer.write(0.0, u, {"two_d": np.zeros((num_owned, 1))})
+        # A failed call writes nothing, and the writer goes on.
+        assert writer.steps_written == 0
+        writer.write(0.0, u, {"good": np.zeros(num_owned)})
+        assert writer.steps_written == 1
+
+
+def test_bad_arguments(directory):
+    mesh = unit_mesh(2)
+    u = affine_displacement(mesh, deformation(2, 0.8))
+    num_owned = mesh.topology.index_map(2).size_local
+    with pytest.raises(ValueError, match=".xdmf"):
+        ResultWriter(directory / "series.h5", mesh)
+    with ResultWriter(directory / "arguments.xdmf", mesh) as writer:
+        with pytest.raises(ValueError, match="reserved"):
+            writer.write(0.0, u, {DISPLACEMENT_NAME: np.zeros(num_owned)})
+        with pytest.raises(ValueError, match="diagnostic name"):
+            writer.write(0.0, u, {"a/b": np.zeros(num_owned)})
+        with pytest.raises(ValueError, match="reserved"):
+            writer.write(0.0, u, record={"time": 3.0})
+        with pytest.raises(ValueError, match="not JSON"):
+            writer.write(0.0, u, record={"solver": object()})
+        writer.write(1.0, u)
+        with pytest.raises(ValueError, match="greater than the previous time"):
+            writer.write(1.0, u)
+    with pytest.raises(RuntimeError, match="closed"):
+        writer.write(2.0, u)
+
+
+def test_non_finite_record_values_are_null(directory):
+    mesh = unit_mesh(2)
+    path = directory / "nonfinite.xdmf"
+    with ResultWriter(path, mesh) as writer:
+        writer.write(0.0, affine_displacement(mesh, deformation(2, 0.8)), record={"e": np.inf})
+    COMM.barrier()
+    if COMM.rank == 0:
+        assert json.loads(path.with_suffix(".jsonl").read_text()) == {
+            "step": 0,
+            "time": 0.0,
+            "e": None,
+        }

@@ -1,0 +1,288 @@
+"""HyperelasticProblem, implicit dynamics and the inversion-free step, end to end.
+
+Real DOLFINx, PETSc and MPI; runs serially and under mpirun (2 and 3 ranks).
+"""
+
+from __future__ import annotations
+
+import math
+
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem.petsc
+import numpy as np
+import pytest
+import ufl
+from dolfinx_helpers import values_at_points
+
+from dolfinx_invertible import C2, IFE, Material, NeoHookean, _compat, lame
+from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
+from dolfinx_invertible.solvers import (
+    EnergyMinimizer,
+    EnergyProblem,
+    HyperelasticProblem,
+    ImplicitDynamics,
+    InversionFreeStep,
+    SolverError,
+    external_forms,
+    solve_load_steps,
+)
+
+MU, LAM = lame(1.0e3, 0.3)
+PROBE_POINTS = np.array([[1.0, 0.1, 0.1], [0.5, 0.25, 0.25], [0.9, 0.2, 0.05]])
+
+
+def beam(comm=MPI.COMM_WORLD, degree: int = 1):
+    mesh = dolfinx.mesh.create_box(
+        comm, [np.zeros(3), np.array([1.0, 0.3, 0.3])], [6, 2, 2], dolfinx.mesh.CellType.tetrahedron
+    )
+    V = _compat.vector_function_space(mesh, "Lagrange", degree)
+    u = dolfinx.fem.Function(V)
+    clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
+    bc = dolfinx.fem.dirichletbc(np.zeros(3), dolfinx.fem.locate_dofs_topological(V, 2, clamped), V)
+    end = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 1.0))
+    tags = dolfinx.mesh.meshtags(mesh, 2, end, np.full(len(end), 1, dtype=np.int32))
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=tags)
+    traction = dolfinx.fem.Constant(mesh, np.zeros(3))
+    return mesh, u, bc, traction, ds(1)
+
+
+def neo_hookean_ufl_energy(u):
+    F = ufl.Identity(3) + ufl.grad(u)
+    J = ufl.det(F)
+    return (MU / 2 * (ufl.tr(F.T * F) - 3) - MU * ufl.ln(J) + LAM / 2 * ufl.ln(J) ** 2) * ufl.dx
+
+
+@pytest.mark.mpi
+def test_kernels_plus_ufl_traction_match_pure_ufl_solution():
+    """Custom kernels and a UFL traction in one system solve the same problem as pure UFL.
+
+    Plain Neo-Hookean: under C2 the compressed fibres (J < 0.9) rightly differ from UFL's.
+    """
+    mesh, u, bc, traction, end = beam()
+    load = -ufl.dot(traction, u) * end
+    problem = HyperelasticProblem(
+        u, Material(NeoHookean(mu=MU, lam=LAM)), [bc], external_energy=load,
+        quadrature_degree=2, petsc_options={"snes_rtol": 1e-11},
+    )  # fmt: skip
+
+    mesh_ufl, u_ufl, bc_ufl, traction_ufl, end_ufl = beam()
+    total = neo_hookean_ufl_energy(u_ufl) - ufl.dot(traction_ufl, u_ufl) * end_ufl
+    energy, residual, jacobian = external_forms(u_ufl, total)
+    reference = EnergyMinimizer(
+        EnergyProblem(u_ufl, energy, residual, jacobian, [bc_ufl]),
+        petsc_options={"snes_rtol": 1e-11},
+    )
+
+    def load(constant):
+        def at(t):
+            constant.value[:] = (0.0, 0.0, -30.0 * t)
+
+        return at
+
+    solve_load_steps(problem.solver, load(traction), 3)
+    solve_load_steps(reference, load(traction_ufl), 3)
+    expected = values_at_points(u_ufl, PROBE_POINTS)
+    actual = values_at_points(u, PROBE_POINTS)
+    assert np.abs(expected).max() > 0.05  # a real deflection
+    np.testing.assert_allclose(actual, expected, atol=1e-8 * np.abs(expected).max())
+
+
+@pytest.mark.mpi
+def test_unprojected_tangent_converges_quadratically():
+    mesh, u, bc, traction, end = beam()
+    problem = HyperelasticProblem(
+        u,
+        Material(NeoHookean(mu=MU, lam=LAM), C2()),
+        [bc],
+        external_energy=-ufl.dot(traction, u) * end,
+        project=False,
+        petsc_options={"snes_rtol": 1e-12, "snes_atol": 1e-13},
+    )
+    traction.value[:] = (0.0, 0.0, -20.0)
+    result = problem.solve()
+    assert result.converged
+    history = np.asarray(result.residual_history)
+    history = history[history > 1e-11 * history[0]] / history[0]
+    assert len(history) >= 4
+    # Quadratic: log r_{k+1} / log r_k → 2 (reported by -rs in the test log).
+    rates = np.log(history[2:]) / np.log(history[1:-1])
+    print("Newton residuals", history, "rates", rates)
+    assert rates[-1] >= 1.8
+
+
+@pytest.mark.mpi
+def test_inverted_scene_same_solution_on_any_number_of_ranks():
+    """Start with inverted elements (C2): the equilibrium is independent of the partition."""
+
+    def solve(comm):
+        mesh, u, bc, traction, end = beam(comm)
+        # A fold through the middle of the beam inverts the elements there.
+        u.interpolate(lambda x: np.stack([-0.8 * np.sin(np.pi * x[0]), 0 * x[1], 0 * x[2]]))
+        u.x.scatter_forward()
+        material = Material(NeoHookean(mu=MU, lam=LAM), C2())
+        start = summary(cell_diagnostics(u, material), comm)
+        problem = HyperelasticProblem(
+            u, material, [bc], external_energy=-ufl.dot(traction, u) * end,
+            petsc_options={"snes_rtol": 1e-11, "snes_max_it": 200},
+        )  # fmt: skip
+        traction.value[:] = (0.0, 0.0, -10.0)
+        result = problem.solve()
+        assert result.converged, result
+        return u, start
+
+    distributed, start = solve(MPI.COMM_WORLD)
+    serial, _ = solve(MPI.COMM_SELF)
+    assert start["inverted_cells"] > 0
+    expected = values_at_points(serial, PROBE_POINTS)
+    actual = values_at_points(distributed, PROBE_POINTS)
+    np.testing.assert_allclose(actual, expected, atol=1e-8 * np.abs(expected).max())
+
+
+@pytest.mark.mpi
+def test_inversion_free_step_on_affine_motion():
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
+    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(V)
+    direction = dolfinx.fem.Function(V)
+    direction.interpolate(lambda x: 2.0 * x)  # δF = 2 I (sign −1 below: shrinking)
+    limiter = InversionFreeStep(u, fraction=0.1)
+    step = limiter.largest_step(_compat.petsc_vector(direction), sign=-1.0)
+    # det((1 − 2α) I) = 0.1  ⇒  α = (1 − 0.1^(1/3)) / 2
+    assert step == pytest.approx((1.0 - 0.1 ** (1.0 / 3.0)) / 2.0, rel=1e-12)
+    assert limiter.largest_step(_compat.petsc_vector(direction), sign=1.0) == 1.0
+
+
+@pytest.mark.mpi
+def test_plain_neo_hookean_with_inversion_free_steps_stays_uninverted():
+    mesh, u, bc, traction, end = beam()
+    material = Material(NeoHookean(mu=MU, lam=LAM))
+    problem = HyperelasticProblem(
+        u, material, [bc], external_energy=-ufl.dot(traction, u) * end, inversion_free=0.1
+    )
+    worst = []
+
+    def monitor(snes, iteration, norm):
+        problem.energy_problem.update_solution(snes.getSolution())
+        worst.append(summary(cell_diagnostics(u, material), mesh.comm)["min_J"])
+
+    problem.solver.snes.setMonitor(monitor)
+
+    def load(t):
+        traction.value[2] = -60.0 * t
+
+    solve_load_steps(problem.solver, load, 4)
+    assert min(worst) > 0.0
+    assert values_at_points(u, PROBE_POINTS)[0, 2] < -0.1
+
+
+@pytest.mark.mpi
+def test_free_fall_matches_discrete_backward_euler():
+    """No supports, gravity only: every node follows uₙ = h² g n(n+1)/2 exactly."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
+    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(V)
+    g = np.array([0.0, 0.0, -9.81])
+    for lumped in (False, True):
+        u.x.array[:] = 0.0
+        dynamics = ImplicitDynamics(
+            u, Material(NeoHookean(mu=MU, lam=LAM), C2()), density=2.0, dt=0.05,
+            gravity=g, lumped_mass=lumped,
+        )  # fmt: skip
+        for _ in range(3):
+            dynamics.step()
+        expected = 0.05**2 * g * 3 * 4 / 2
+        values = u.x.array.reshape(-1, 3)
+        np.testing.assert_allclose(values, np.broadcast_to(expected, values.shape), atol=1e-9)
+        assert dynamics.time == pytest.approx(0.15)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("extension", [C2(0.9), IFE(0.9)])
+def test_collapsed_cube_recovers(extension):
+    """Paper Fig. 5 (left), small: every vertex pulled to the centre (F = 0.05 I)."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
+    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(V)
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    material = Material(NeoHookean(mu=MU, lam=LAM), extension)
+    dynamics = ImplicitDynamics(
+        u, material, density=1.0, dt=0.02, petsc_options={"snes_rtol": 1e-6, "snes_max_it": 200}
+    )
+    dynamics.advance(0.4)
+    final = summary(cell_diagnostics(u, material), mesh.comm)
+    assert final["inverted_cells"] == 0
+    assert final["min_J"] > 0.95
+
+
+@pytest.mark.mpi
+def test_bad_input_is_refused_before_solving():
+    mesh, u, bc, traction, end = beam()
+    material = Material(NeoHookean(mu=MU, lam=LAM), C2())
+    V = u.function_space
+    nowhere = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 5.0))
+    empty = dolfinx.fem.dirichletbc(
+        np.zeros(3), dolfinx.fem.locate_dofs_topological(V, 2, nowhere), V
+    )
+    with pytest.raises(ValueError, match="constrains no degree of freedom"):
+        HyperelasticProblem(u, material, [empty])
+    with pytest.raises(ValueError, match="dt must be"):
+        ImplicitDynamics(u, material, density=1.0, dt=0.0)
+    with pytest.raises(ValueError, match="dt must be"):
+        ImplicitDynamics(u, material, density=1.0, dt=-1.0)
+    u.x.array[0] = math.nan
+    with pytest.raises(ValueError, match="NaN or Inf"):
+        HyperelasticProblem(u, material, [bc])
+
+
+def test_degenerate_reference_cells_are_named():
+    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 2, 2)
+    # Squash the top row of vertices onto the middle row: the top cells lose all their area.
+    x = mesh.geometry.x
+    x[np.isclose(x[:, 1], 1.0), 1] = 0.5
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    with pytest.raises(ValueError, match=r"4 degenerate \(zero-volume\) cells"):
+        HyperelasticProblem(u, Material(NeoHookean(mu=MU, lam=LAM), C2()))
+
+
+@pytest.mark.mpi
+def test_failed_time_step_raises_with_time_and_reason():
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u.interpolate(lambda x: -0.9 * (x - 0.5))
+    dynamics = ImplicitDynamics(
+        u, Material(NeoHookean(mu=MU, lam=LAM), C2()), density=1.0, dt=0.1, max_cuts=1,
+        petsc_options={"snes_max_it": 1},
+    )  # fmt: skip
+    before = u.x.array.copy()
+    with pytest.raises(SolverError, match=r"step 1 from t = 0 failed 2 times.*DIVERGED"):
+        dynamics.step()
+    np.testing.assert_array_equal(u.x.array, before)
+    assert dynamics.time == 0.0
+
+
+@pytest.mark.mpi
+def test_time_dependent_dirichlet_data_drive_the_motion():
+    """A face moved with prescribed velocity 0.5: its dofs follow exactly, the rest follows."""
+    mesh, u, _, _, _ = beam()
+    V = u.function_space
+    face = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
+    dofs = dolfinx.fem.locate_dofs_topological(V, 2, face)
+    prescribed = dolfinx.fem.Function(V)
+    bc = dolfinx.fem.dirichletbc(prescribed, dofs)
+
+    def move(t):
+        prescribed.interpolate(lambda x: np.stack([0.5 * t + 0 * x[0], 0 * x[1], 0 * x[2]]))
+
+    dynamics = ImplicitDynamics(
+        u, Material(NeoHookean(mu=MU, lam=LAM), C2()), density=10.0, dt=0.02, bcs=[bc],
+        boundary_update=move,
+    )  # fmt: skip
+    dynamics.advance(0.1)
+    moved = u.x.array.reshape(-1, 3)[dofs]
+    np.testing.assert_allclose(moved[:, 0], 0.5 * dynamics.time, rtol=1e-12)
+    np.testing.assert_allclose(dynamics.velocity.x.array.reshape(-1, 3)[dofs, 0], 0.5, rtol=1e-9)
+    # The far end has started to follow, but lags behind the driven face.
+    far = values_at_points(u, np.array([[1.0, 0.15, 0.15]]))[0, 0]
+    assert 0.0 < far < 0.5 * dynamics.time

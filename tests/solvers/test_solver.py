@@ -1,0 +1,413 @@
+"""Newton solver and load stepping on a compressible Neo-Hookean cantilever (real DOLFINx/PETSc).
+
+Runs serially and under mpirun: every test is collective, and the MPI test compares the
+distributed solution with the same problem solved on MPI.COMM_SELF in the same run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import dolfinx.mesh
+import numpy as np
+import pytest
+import ufl
+from dolfinx_helpers import values_at_points
+from petsc4py import PETSc
+
+from dolfinx_invertible import _compat
+from dolfinx_invertible.solvers import (
+    EnergyMinimizer,
+    EnergyProblem,
+    SolverError,
+    SolveResult,
+    rigid_body_near_nullspace,
+    snes_reason_name,
+    solve_load_steps,
+)
+
+pytestmark = pytest.mark.mpi
+
+LENGTH = 3.0
+YOUNG, POISSON = 1.0e3, 0.3
+SPRING = 5.0  # N/m³ on the loaded end: gives the split jacobian a facet-integral form
+# Body force and end traction per unit load factor, pointing down; at load factor 0.5 the tip
+# deflects by about a third of the length, enough for Newton to need several iterations.
+BODY_FORCE, TRACTION = 10.0, 30.0
+PROBE_POINTS = np.array([[2.9, 0.45, 0.55], [1.5, 0.3, 0.7], [0.7, 0.6, 0.2], [2.2, 0.9, 0.1]])
+
+
+@dataclasses.dataclass
+class Cantilever:
+    problem: EnergyProblem
+    pseudo_time: dolfinx.fem.Constant  # scales body force and traction
+    u: dolfinx.fem.Function
+
+    def set_time(self, t: float) -> None:
+        self.pseudo_time.value = t
+
+    def reset(self) -> None:
+        self.u.x.array[:] = 0.0
+
+
+def cantilever(
+    comm: MPI.Comm = MPI.COMM_WORLD, split: bool = False, energy: bool = True, load: float = 0.5
+) -> Cantilever:
+    """A 3 x 1 x 1 block of 6x2x2x6 P1 tetrahedra clamped at x = 0, hanging under gravity and an
+    end traction, with a weak spring on the end face.
+
+    ``split`` gives Π as [elastic, spring + load potential] and the tangent as [elastic, spring];
+    otherwise everything is one form. ``energy=False`` drops the energy forms (stress-only).
+    """
+    corners = [np.zeros(3), np.array([LENGTH, 1.0, 1.0])]
+    mesh = dolfinx.mesh.create_box(comm, corners, [6, 2, 2], dolfinx.mesh.CellType.tetrahedron)
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(space)
+    test, trial = ufl.TestFunction(space), ufl.TrialFunction(space)
+    pseudo_time = dolfinx.fem.Constant(mesh, 0.0)
+
+    mu = YOUNG / (2.0 * (1.0 + POISSON))
+    lam = YOUNG * POISSON / ((1.0 + POISSON) * (1.0 - 2.0 * POISSON))
+    gradient = ufl.Identity(3) + ufl.grad(u)
+    log_volume = ufl.ln(ufl.det(gradient))
+    psi = mu / 2 * (ufl.tr(gradient.T * gradient) - 3) - mu * log_volume + lam / 2 * log_volume**2
+
+    end = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], LENGTH))
+    tags = dolfinx.mesh.meshtags(mesh, 2, end, np.ones(len(end), dtype=np.int32))
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=tags)
+    down = ufl.as_vector((0.0, 0.0, -1.0))
+    elastic = psi * ufl.dx
+    spring = SPRING / 2 * ufl.inner(u, u) * ds(1)
+    load_density = BODY_FORCE * ufl.inner(down, u) * ufl.dx + TRACTION * ufl.inner(down, u) * ds(1)
+    load_potential = -pseudo_time * load * load_density
+
+    def first(form):
+        return ufl.derivative(form, u, test)
+
+    def second(form):
+        return ufl.derivative(first(form), u, trial)
+
+    if split:
+        energy_parts, tangent_parts = [elastic, spring + load_potential], [elastic, spring]
+    else:
+        energy_parts = [elastic + spring + load_potential]
+        tangent_parts = energy_parts
+    clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
+    bc = dolfinx.fem.dirichletbc(
+        np.zeros(3), dolfinx.fem.locate_dofs_topological(space, 2, clamped), space
+    )
+    problem = EnergyProblem(
+        u,
+        [dolfinx.fem.form(part) for part in energy_parts] if energy else None,
+        [dolfinx.fem.form(first(part)) for part in energy_parts],
+        [dolfinx.fem.form(second(part)) for part in tangent_parts],
+        [bc],
+    )
+    return Cantilever(problem, pseudo_time, u)
+
+
+def global_norm(function: dolfinx.fem.Function) -> float:
+    return _compat.petsc_vector(function).norm()
+
+
+def relative_difference(a: dolfinx.fem.Function, b: dolfinx.fem.Function) -> float:
+    difference = _compat.petsc_vector(a).copy()
+    difference.axpy(-1.0, _compat.petsc_vector(b))
+    return difference.norm() / global_norm(b)
+
+
+def solve_at(case: Cantilever, solver: EnergyMinimizer, t: float) -> SolveResult:
+    case.set_time(t)
+    result = solver.solve()
+    assert result.converged, result
+    return result
+
+
+def test_neo_hookean_load_steps_converge_with_energy_decrease():
+    case = cantilever()
+    solver = EnergyMinimizer(case.problem)
+    assert solver.line_search == "bt"
+    assert solver.snes.getKSP().getType() == "cg"
+    assert solver.snes.getKSP().getPC().getType() == "gamg"
+
+    energies: list[float] = []
+
+    def record_energy(snes: PETSc.SNES, iteration: int, residual_norm: float) -> None:
+        energies.append(case.problem.objective(snes, snes.getSolution()))
+
+    solver.snes.setMonitor(record_energy)
+    per_step: list[tuple[float, list[float], SolveResult]] = []
+
+    def on_step(t: float, result: SolveResult) -> None:
+        per_step.append((t, list(energies), result))
+        energies.clear()
+
+    results = solve_load_steps(solver, case.set_time, 3, on_step=on_step)
+
+    assert [t for t, _, _ in per_step] == pytest.approx([1 / 3, 2 / 3, 1.0])
+    assert len(results) == 3 and all(result.converged for result in results)
+    residual = case.problem.create_vector()
+    for _, step_energies, result in per_step:
+        assert result.newton_iterations >= 2 and result.linear_iterations > 0
+        # Monotone descent of Π over the Newton iterates, up to rounding.
+        scale = max(abs(value) for value in step_energies)
+        assert all(b <= a + 1e-12 * scale for a, b in zip(step_energies, step_energies[1:]))
+        assert step_energies[-1] < step_energies[0]
+        assert result.energy == pytest.approx(step_energies[-1], rel=1e-12)
+        assert result.residual_norm < 1e-8 * result.residual_history[0]
+    # Independent check of the final residual: assemble it afresh at the solution.
+    case.problem.F(None, _compat.petsc_vector(case.u), residual)
+    assert residual.norm() < 1e-8 * per_step[-1][2].residual_history[0]
+    tip = values_at_points(case.u, PROBE_POINTS[:1])[0]
+    assert tip[2] < -0.5  # hangs down by a visible fraction of its length
+
+
+def test_split_forms_match_single_form():
+    single, split = cantilever(), cantilever(split=True)
+    results = []
+    for case in (single, split):
+        solver = EnergyMinimizer(case.problem)
+        results.append(solve_at(case, solver, 1.0))
+    assert relative_difference(split.u, single.u) < 1e-10
+    assert results[1].energy == pytest.approx(results[0].energy, rel=1e-10)
+
+    # Tangent and residual at the same (non-trivial) state: the split sums must equal the single
+    # forms, with each Dirichlet row and column zero but for a 1 on the diagonal.
+    state = _compat.petsc_vector(single.u)
+    matrices, residuals = [], []
+    for case in (single, split):
+        matrix, residual = case.problem.create_matrix(), case.problem.create_vector()
+        case.problem.J(None, state, matrix, matrix)
+        case.problem.F(None, state, residual)
+        assert matrix.getInfo()["mallocs"] == 0  # the spring's facet integral fits the pattern
+        matrices.append(matrix)
+        residuals.append(residual)
+    difference = matrices[1].copy()
+    difference.axpy(-1.0, matrices[0])
+    assert difference.norm() < 1e-12 * matrices[0].norm()
+    residuals[1].axpy(-1.0, residuals[0])
+    assert residuals[1].norm() < 1e-12 * results[0].residual_history[0]
+
+    bc_dofs = split.problem.bcs[0].dof_indices()[0]
+    block_size = split.u.function_space.dofmap.index_map_bs
+    owned = split.u.function_space.dofmap.index_map.size_local * block_size
+    bc_dofs = bc_dofs[bc_dofs < owned]
+    start = matrices[1].getOwnershipRange()[0]
+    diagonal = matrices[1].getDiagonal()
+    assert np.all(diagonal.array[bc_dofs] == 1.0)
+    for dof in bc_dofs[:5]:
+        columns, values = matrices[1].getRow(start + dof)
+        assert np.all(values[columns != start + dof] == 0.0)
+
+
+def test_interior_facet_jacobian_beyond_first_pattern_is_allocated_and_reported():
+    mesh = dolfinx.mesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.ones(3)], [3, 2, 2])
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(space)
+    test, trial = ufl.TestFunction(space), ufl.TrialFunction(space)
+    mass = ufl.inner(trial, test) * ufl.dx
+    # Couples the dofs of the two cells of a facet, which the mass pattern does not contain.
+    jumps = ufl.inner(ufl.jump(ufl.grad(trial)), ufl.jump(ufl.grad(test))) * ufl.dS
+    facets = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
+    bc = dolfinx.fem.dirichletbc(
+        np.zeros(3), dolfinx.fem.locate_dofs_topological(space, 2, facets), space
+    )
+    residual = dolfinx.fem.form(ufl.inner(u, test) * ufl.dx)
+    problem = EnergyProblem(
+        u, None, residual, [dolfinx.fem.form(mass), dolfinx.fem.form(jumps)], [bc]
+    )
+    matrix = problem.create_matrix()
+    with pytest.warns(RuntimeWarning, match="beyond the sparsity pattern"):
+        problem.J(None, _compat.petsc_vector(u), matrix, matrix)
+    expected = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(mass + jumps), bcs=[bc])
+    expected.assemble()
+    difference = matrix.copy()
+    difference.axpy(-1.0, expected, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    assert difference.norm() < 1e-12 * expected.norm()
+
+
+def test_quadratic_convergence_near_solution():
+    case = cantilever(load=0.3)
+    solver = EnergyMinimizer(case.problem)
+    result = solve_at(case, solver, 1.0)
+    history = np.array(result.residual_history)
+    assert result.newton_iterations >= 3
+    relative = history / history[0]
+    # Pairs inside the convergence region and above the rounding floor of the residual.
+    pairs = [(a, b) for a, b in zip(relative, relative[1:]) if a < 1e-2 and b > 1e-14]
+    assert len(pairs) >= 1, relative
+    for a, b in pairs[-2:]:
+        assert np.log(b) / np.log(a) >= 1.8, relative
+
+
+def test_boomeramg_gives_same_solution():
+    # A property of the PETSc build, not of DOLFINx: the PyPI DOLFINx wheel's PETSc has no hypre.
+    if not PETSc.Sys.hasExternalPackage("hypre"):
+        pytest.skip("this PETSc was built without hypre (BoomerAMG)")
+    reference, case = cantilever(), cantilever()
+    solve_at(reference, EnergyMinimizer(reference.problem), 1.0)
+    solver = EnergyMinimizer(case.problem, pc="hypre")
+    assert solver.snes.getKSP().getPC().getType() == "hypre"
+    solve_at(case, solver, 1.0)
+    assert relative_difference(case.u, reference.u) < 1e-8
+
+
+def test_stress_only_problem_uses_l2_line_search():
+    reference, case = cantilever(), cantilever(energy=False)
+    solve_at(reference, EnergyMinimizer(reference.problem), 0.5)
+    solver = EnergyMinimizer(case.problem)
+    assert solver.line_search == "l2"
+    result = solve_at(case, solver, 0.5)
+    assert result.energy is None
+    assert relative_difference(case.u, reference.u) < 1e-8
+    with pytest.raises(ValueError, match="no energy"):
+        case.problem.objective(None, _compat.petsc_vector(case.u))
+
+
+def test_option_override_makes_solve_fail_and_keeps_u():
+    case = cantilever()
+    solve_at(case, EnergyMinimizer(case.problem), 0.5)
+    before = case.u.x.array.copy()
+
+    solver = EnergyMinimizer(case.problem, petsc_options={"snes_max_it": 1})
+    case.set_time(1.0)
+    result = solver.solve()
+    assert not result.converged
+    assert result.reason < 0 and result.reason_name == "DIVERGED_MAX_IT"
+    assert result.newton_iterations == 1 and result.energy is None
+    assert np.array_equal(case.u.x.array, before)  # ghosts included
+
+    # Our options leave the database with the solve, so a later solver gets the defaults back...
+    assert solver.snes.getTolerances()[3] == 1
+    assert EnergyMinimizer(case.problem).snes.getTolerances()[3] == 50
+    assert not PETSc.Options().hasName("dolfinx_invertible_snes_max_it")
+    # ...while options the caller put there (as on the command line) win over ours.
+    PETSc.Options()["dolfinx_invertible_snes_max_it"] = 2
+    try:
+        assert (
+            EnergyMinimizer(case.problem, petsc_options={"snes_max_it": 7}).snes.getTolerances()[3]
+            == 2
+        )
+    finally:
+        PETSc.Options().delValue("dolfinx_invertible_snes_max_it")
+
+
+def test_reason_names():
+    reasons = PETSc.SNES.ConvergedReason
+    assert snes_reason_name(reasons.DIVERGED_LINE_SEARCH) == "DIVERGED_LINE_SEARCH"
+    assert snes_reason_name(reasons.CONVERGED_FNORM_ABS) == "CONVERGED_FNORM_ABS"
+    assert snes_reason_name(-1234) == "UNKNOWN_REASON_-1234"
+
+
+def test_load_steps_cut_after_failure_then_succeed():
+    case = cantilever()
+    # Calibrate: Newton iterations for one full step and for two half steps.
+    solver = EnergyMinimizer(case.problem)
+    full = solve_at(case, solver, 1.0).newton_iterations
+    reference = case.u.x.array.copy()
+    case.reset()
+    halves = [solve_at(case, solver, t).newton_iterations for t in (0.5, 1.0)]
+    max_iterations = max(halves)
+    assert full > max_iterations, (full, halves)  # the premise: halves are easier than one step
+    case.reset()
+    case.set_time(0.0)
+
+    limited = EnergyMinimizer(case.problem, petsc_options={"snes_max_it": max_iterations})
+    loads: list[float] = []
+    steps: list[float] = []
+
+    def update_load(t: float) -> None:
+        loads.append(t)
+        case.set_time(t)
+
+    results = solve_load_steps(limited, update_load, 1, on_step=lambda t, r: steps.append(t))
+    assert loads == [1.0, 0.0, 0.5, 1.0]  # try, restore, halved retry, the rest of the way
+    assert steps == [0.5, 1.0]
+    assert len(results) == 2 and all(result.converged for result in results)
+    tolerance = 1e-8 * np.abs(reference).max()
+    np.testing.assert_allclose(case.u.x.array, reference, rtol=0, atol=tolerance)
+
+
+def test_load_steps_raise_when_cuts_exhausted():
+    case = cantilever()
+    solver = EnergyMinimizer(case.problem, petsc_options={"snes_max_it": 1})
+    loads: list[float] = []
+
+    def update_load(t: float) -> None:
+        loads.append(t)
+        case.set_time(t)
+
+    with pytest.raises(SolverError) as raised:
+        solve_load_steps(solver, update_load, [0.5, 1.0], max_cuts=2)
+    error = raised.value
+    message = str(error)
+    assert "DIVERGED_MAX_IT" in message
+    assert "load step 1 of 2" in message
+    assert "pseudo-time 0.125" in message  # 0.5 cut twice
+    assert "last converged pseudo-time 0" in message
+    assert (error.reason_name, error.step_index) == ("DIVERGED_MAX_IT", 1)
+    assert (error.time_reached, error.time_tried) == (0.0, 0.125)
+    assert isinstance(error, RuntimeError)
+    assert loads == [0.5, 0.0, 0.25, 0.0, 0.125, 0.0]
+    assert not case.u.x.array.any()  # the state of pseudo-time 0
+
+
+@pytest.mark.parametrize(
+    "steps", [0, -2, True, [], [0.5], [0.0, 1.0], [0.5, 0.5, 1.0], [0.6, 0.4, 1.0], [1.5], "1"]
+)
+def test_load_steps_validate_steps(steps):
+    case = cantilever()
+    solver = EnergyMinimizer(case.problem)
+    with pytest.raises(ValueError, match="steps"):
+        solve_load_steps(solver, case.set_time, steps)
+    with pytest.raises(ValueError, match="max_cuts"):
+        solve_load_steps(solver, case.set_time, 2, max_cuts=-1)
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_rigid_body_modes_span_the_kernel_of_elasticity(dimension):
+    comm = MPI.COMM_WORLD
+    # Away from the origin, so that rotations are not orthogonal to translations from the start.
+    corners = [np.full(dimension, 5.0), np.array([7.0, 6.0, 6.0][:dimension])]
+    if dimension == 2:
+        mesh = dolfinx.mesh.create_rectangle(comm, corners, [4, 2])
+    else:
+        mesh = dolfinx.mesh.create_box(comm, corners, [4, 2, 2])
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u, v = ufl.TrialFunction(space), ufl.TestFunction(space)
+    strain = ufl.sym(ufl.grad(u))
+    form = dolfinx.fem.form(
+        ufl.inner(2.0 * strain + ufl.tr(strain) * ufl.Identity(dimension), ufl.grad(v)) * ufl.dx
+    )
+    matrix = dolfinx.fem.petsc.assemble_matrix(form)
+    matrix.assemble()
+    nullspace = rigid_body_near_nullspace(space)
+    vectors = nullspace.getVecs()
+    assert len(vectors) == {2: 3, 3: 6}[dimension]
+    gram = np.array([[a.dot(b) for b in vectors] for a in vectors])
+    np.testing.assert_allclose(gram, np.eye(len(vectors)), atol=1e-12)
+    image = matrix.createVecLeft()
+    for vector in vectors:
+        matrix.mult(vector, image)
+        assert image.norm() < 1e-12 * matrix.norm()
+
+
+def test_distributed_solution_matches_serial_solution():
+    distributed, serial = cantilever(MPI.COMM_WORLD), cantilever(MPI.COMM_SELF)
+    assert serial.u.function_space.mesh.comm.size == 1
+    for case in (distributed, serial):
+        solver = EnergyMinimizer(
+            case.problem, petsc_options={"snes_rtol": 1e-11, "snes_atol": 1e-12}
+        )
+        solve_load_steps(solver, case.set_time, 2)
+    expected = values_at_points(serial.u, PROBE_POINTS)
+    actual = values_at_points(distributed.u, PROBE_POINTS)
+    np.testing.assert_allclose(actual, expected, rtol=0, atol=1e-8 * np.abs(expected).max())
+    assert np.abs(expected).max() > 0.1
+    # Every rank compared against its own serial solve; make sure they all saw the same thing.
+    assert all(np.array_equal(actual, other) for other in MPI.COMM_WORLD.allgather(actual))
