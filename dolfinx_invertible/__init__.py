@@ -50,6 +50,9 @@ _LAZY = {
     "SolveResult": "dolfinx_invertible.solvers.results",
     "SolverError": "dolfinx_invertible.solvers.results",
     "solve_load_steps": "dolfinx_invertible.solvers.stepping",
+    "StepController": "dolfinx_invertible.solvers.stepping",
+    "EnergyTerm": "dolfinx_invertible.solvers.problem",
+    "StepLimit": "dolfinx_invertible.solvers.step_limit",
     "ResultWriter": "dolfinx_invertible.io.xdmf",
 }
 

@@ -286,3 +286,9 @@ def boundary_condition_dof_count(bc) -> int:
     """Return number of dofs a DirichletBC constrains that this rank owns."""
     _, owned = bc.dof_indices()
     return int(owned)
+
+
+def constrained_local_dofs(bc) -> np.ndarray:
+    """Return the local dof indices (owned and ghost, components unrolled) a DirichletBC fixes."""
+    dofs, _ = bc.dof_indices()
+    return np.asarray(dofs, dtype=np.int32)

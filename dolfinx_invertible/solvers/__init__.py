@@ -6,8 +6,10 @@
 - :mod:`.nullspace`: rigid-body modes for algebraic multigrid;
 - :mod:`.results`: :class:`SolveResult` and :class:`SolverError`;
 - :mod:`.hyperelastic`: :class:`HyperelasticProblem`, material + boundary conditions + UFL terms;
-- :mod:`.stepping`: quasi-static load steps with step cutting;
-- :mod:`.step_limit`: the inversion-free step cap;
+- :mod:`.stepping`: the step controller (cut on failure, grow after easy steps) and
+  quasi-static load steps;
+- :mod:`.step_limit`: step caps, the inversion-free one among them;
+- :mod:`.integrators`: backward Euler and BDF2 as incremental potentials;
 - :mod:`.dynamics`: implicit time stepping.
 """
 
@@ -22,18 +24,29 @@ from dolfinx_invertible.solvers.step_limit import InversionFreeStep, volume_poly
 from dolfinx_invertible.solvers.stepping import solve_load_steps
 
 __all__ = [
+    "BDF2",
     "DEFAULT_OPTIONS_PREFIX",
     "DEFAULT_PETSC_OPTIONS",
+    "DIRECT_SOLVE_LIMIT",
+    "INTEGRATORS",
+    "STAGES",
+    "BackwardEuler",
     "EnergyMinimizer",
     "EnergyProblem",
+    "EnergyTerm",
     "HyperelasticProblem",
     "ImplicitDynamics",
     "InversionFreeStep",
+    "Solvable",
     "SolveResult",
     "SolverError",
+    "StepController",
+    "StepLimit",
     "external_forms",
+    "ksp_reason_name",
     "rigid_body_near_nullspace",
     "snes_reason_name",
     "solve_load_steps",
+    "take_step",
     "volume_polynomial",
 ]

@@ -1,15 +1,18 @@
-"""Implicit dynamics: backward Euler as minimisation of the incremental potential.
+"""Implicit dynamics as minimisation of an incremental potential (backward Euler or BDF2).
 
 Each step minimises over the new displacement u
 
-    E(u) = ρ/(2h²) ‖u − ũ‖²_M + ∫Ψ(F(u)) dX − ∫ρ g·u dX + (extra potential),
-    ũ = uₙ + h vₙ,
+    E(u) = ρ w/2 ‖u − û‖²_M + ∫Ψ(F(u)) dX − ∫ρ g·u dX + (extra potential),
 
-whose stationarity condition is M(u − uₙ − h vₙ)/h² + f_int(u) = f_ext: backward Euler. Being a
-minimisation, the energy line search applies unchanged. Then vₙ₊₁ = (u − uₙ)/h. The mass matrix
-is consistent by default; ``lumped_mass=True`` integrates the inertia term with the vertex rule
-(P1 only), which lumps it. Quasi-static scenes use :class:`~dolfinx_invertible.solvers.hyperelastic.
-HyperelasticProblem` directly and carry no mass term at all.
+where the weight w and the target û come from the integrator (see
+:mod:`~dolfinx_invertible.solvers.integrators`; backward Euler: w = 1/h², û = uₙ + h vₙ). Its
+stationarity condition is the integrator's discrete momentum balance; being a minimisation, the
+energy line search and the step limits apply unchanged. The mass matrix is consistent by
+default; ``lumped_mass=True`` integrates the inertia term with the vertex rule (P1 only), which
+lumps it. Quasi-static problems use
+:class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem` directly and carry no mass
+term at all. Steps are controlled by the
+:class:`~dolfinx_invertible.solvers.stepping.StepController` that load stepping uses too.
 """
 
 from __future__ import annotations
@@ -27,13 +30,15 @@ import ufl
 from dolfinx_invertible import _compat
 from dolfinx_invertible.constitutive.material import Material
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem
-from dolfinx_invertible.solvers.results import SolverError, SolveResult
+from dolfinx_invertible.solvers.integrators import INTEGRATORS
+from dolfinx_invertible.solvers.results import SolveResult
+from dolfinx_invertible.solvers.stepping import StepController, take_step
 
 __all__ = ["ImplicitDynamics"]
 
 
 class ImplicitDynamics:
-    """Backward Euler time stepping of a hyperelastic body.
+    """Implicit time stepping of a hyperelastic body: backward Euler or variable-step BDF2.
 
     Parameters
     ----------
@@ -44,7 +49,7 @@ class ImplicitDynamics:
     density
         Mass density ρ > 0 in the reference configuration.
     dt
-        Time step h > 0.
+        Time step h > 0: the largest step the controller takes.
     bcs
         Dirichlet conditions; for time-dependent data pass ``boundary_update``.
     velocity
@@ -56,14 +61,37 @@ class ImplicitDynamics:
     boundary_update
         ``boundary_update(t)`` sets the Dirichlet values (and any time-dependent load) for
         time ``t``; called before every solve attempt.
+    scheme
+        ``"backward-euler"`` (default; first order, strongly damping) or ``"bdf2"`` (second
+        order, variable step).
+    damping
+        Mass-proportional damping coefficient c ≥ 0 [1/s]: a force −c ρ v per unit volume.
     lumped_mass
         Lump the mass matrix (vertex quadrature; P1 only).
     max_cuts
-        Consecutive halvings of the step before :meth:`step` gives up.
+        Consecutive step cuts before a step gives up.
+    controller
+        The step policy; by default a :class:`~dolfinx_invertible.solvers.stepping.StepController`
+        with nominal step ``dt`` (cut on failure, grow after easy steps, never above ``dt``).
+    max_new_inverted
+        If given, a converged step that inverts more than this many further quadrature cells
+        (cells with det F ≤ 0 at a point) is cut and retried as if it had failed.
     **problem_options
         Passed to :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`
         (``quadrature_degree``, ``project`` — default ``True`` here —, ``petsc_options``,
-        ``options_prefix``, ``pc``, ``inversion_free``).
+        ``options_prefix``, ``linear_solver``, ``pc``, ``inversion_free``, ``step_limits``,
+        ``terms``, ...).
+
+    Attributes
+    ----------
+    problem
+        The :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem` of a step.
+    time
+        Time of the current state.
+    steps
+        Completed steps.
+    velocity
+        Velocity of the current state.
     """
 
     def __init__(
@@ -78,37 +106,53 @@ class ImplicitDynamics:
         gravity: Sequence[float] | None = None,
         external_energy=None,
         boundary_update: Callable[[float], None] | None = None,
+        scheme: str = "backward-euler",
+        damping: float = 0.0,
         lumped_mass: bool = False,
         max_cuts: int = 6,
+        controller: StepController | None = None,
+        max_new_inverted: int | None = None,
         **problem_options,
     ):
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
         if not (math.isfinite(density) and density > 0.0):
             raise ValueError(f"density must be a finite number > 0, got {density!r}")
+        if not (math.isfinite(damping) and damping >= 0.0):
+            raise ValueError(f"damping must be a finite number >= 0, got {damping!r}")
+        if scheme not in INTEGRATORS:
+            raise ValueError(f"scheme must be one of {sorted(INTEGRATORS)}, got {scheme!r}")
         space = u.function_space
         mesh = space.mesh
         d = mesh.geometry.dim
         if lumped_mass and _compat.element_degree(space) != 1:
             raise ValueError("lumped_mass is only available for P1 displacements (vertex rule)")
         self.u = u
+        self.material = material
+        self.integrator = INTEGRATORS[scheme]
+        self.damping = float(damping)
         self.previous = dolfinx.fem.Function(space)
         self.previous.x.array[:] = u.x.array
+        self.older = dolfinx.fem.Function(space)
         self.velocity = dolfinx.fem.Function(space)
         if velocity is not None:
             self.velocity.x.array[:] = velocity.x.array
         if not np.all(np.isfinite(self.velocity.x.array)):
             raise ValueError("the initial velocity contains NaN or Inf values")
-        self.dt = dolfinx.fem.Constant(mesh, float(dt))
+        self.older_velocity = dolfinx.fem.Function(space)
         self.time = 0.0
         self.steps = 0
-        self.max_cuts = int(max_cuts)
+        self._last_step: float | None = None
+        self.controller = controller or StepController(dt, max_cuts=max_cuts)
         self.boundary_update = boundary_update
+        self.max_new_inverted = max_new_inverted
 
+        self._weight = dolfinx.fem.Constant(mesh, 1.0 / dt**2)
+        self._target = dolfinx.fem.Function(space)
         metadata = {"quadrature_rule": "vertex", "quadrature_degree": 1} if lumped_mass else {}
         mass_measure = ufl.dx(domain=mesh, metadata=metadata)
-        prediction = self.previous + self.dt * self.velocity
-        energy = 0.5 * density / self.dt**2 * ufl.dot(u - prediction, u - prediction) * mass_measure
+        offset = u - self._target
+        energy = 0.5 * density * self._weight * ufl.dot(offset, offset) * mass_measure
         if gravity is not None:
             if len(gravity) != d:
                 raise ValueError(f"gravity needs {d} components, got {len(gravity)}")
@@ -119,8 +163,7 @@ class ImplicitDynamics:
         if boundary_update is not None:
             boundary_update(self.time)
         # Dynamics scenes are where elements get crushed and inverted, and the mass term keeps
-        # the projected system well conditioned: project unless told otherwise (an "auto"
-        # exact-first attempt mostly fails there and doubles the cost of a step).
+        # the projected system well conditioned: project unless told otherwise.
         problem_options.setdefault("project", True)
         self.problem = HyperelasticProblem(
             u, material, bcs, external_energy=energy, **problem_options
@@ -129,8 +172,61 @@ class ImplicitDynamics:
             0.5 * density * ufl.dot(self.velocity, self.velocity) * ufl.dx(domain=mesh)
         )
 
-    def step(self) -> SolveResult:
-        """Advance by one step of the current ``dt``, halving it on failure.
+    @property
+    def dt(self) -> float:
+        """The step size the next step attempts."""
+        return self.controller.step
+
+    def _coefficients(self, step: float) -> tuple[float, float, float]:
+        previous = self._last_step if self.integrator.history > 1 else None
+        return self.integrator.coefficients(step, previous)
+
+    def _prepare(self, step: float) -> None:
+        """Set the weight and target of the inertia term for a step of ``step``."""
+        a0, a1, a2 = self._coefficients(step)
+        positions = a1 * self.previous.x.array + a2 * self.older.x.array
+        velocities = a1 * self.velocity.x.array + a2 * self.older_velocity.x.array
+        prediction = -positions / a0 - velocities / a0**2
+        weight = a0 * a0
+        if self.damping > 0.0:
+            # ½ c α₀ ‖u − ũ‖² with ũ = −(α₁uₙ + α₂uₙ₋₁)/α₀ merges with ½ α₀² ‖u − û‖².
+            damped = -positions / a0
+            weight = a0 * a0 + self.damping * a0
+            prediction = (a0 * a0 * prediction + self.damping * a0 * damped) / weight
+        self._weight.value = weight
+        self._target.x.array[:] = prediction
+
+    def _attempt(self, start: float, end: float) -> SolveResult:
+        self._prepare(end - start)
+        if self.boundary_update is not None:
+            self.boundary_update(end)
+        self.u.x.array[:] = self.previous.x.array
+        return self.problem.solve()
+
+    def _restore(self, start: float) -> None:
+        if self.boundary_update is not None:
+            self.boundary_update(start)
+        self.u.x.array[:] = self.previous.x.array
+
+    def _commit(self, step: float) -> None:
+        a0, a1, a2 = self._coefficients(step)
+        new_velocity = a0 * self.u.x.array + a1 * self.previous.x.array + a2 * self.older.x.array
+        self.older.x.array[:] = self.previous.x.array
+        self.older_velocity.x.array[:] = self.velocity.x.array
+        self.previous.x.array[:] = self.u.x.array
+        self.velocity.x.array[:] = new_velocity
+        self._last_step = step
+        self.time += step
+        self.steps += 1
+
+    def _inverted_cells(self) -> int:
+        from dolfinx_invertible.fem.diagnostics import cell_diagnostics
+
+        local = int(np.count_nonzero(cell_diagnostics(self.u, self.material)["inverted"]))
+        return self.u.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+    def step(self, remaining: float = math.inf) -> SolveResult:
+        """Advance by one step (at most ``remaining``), cutting it on failure.
 
         Raises
         ------
@@ -138,51 +234,48 @@ class ImplicitDynamics:
             Newton failed ``max_cuts + 1`` times in a row; ``u``, the velocity and the time are
             those of the last completed step.
         """
-        dt = float(self.dt.value)
-        for _ in range(self.max_cuts + 1):
-            target = self.time + dt
-            if self.boundary_update is not None:
-                self.boundary_update(target)
-            self.u.x.array[:] = self.previous.x.array
-            result = self.problem.solve()
-            if result.converged:
-                self.velocity.x.array[:] = (self.u.x.array - self.previous.x.array) / dt
-                self.previous.x.array[:] = self.u.x.array
-                self.time = target
-                self.steps += 1
-                return result
-            dt *= 0.5
-            self.dt.value = dt
-        if self.boundary_update is not None:
-            self.boundary_update(self.time)
-        self.u.x.array[:] = self.previous.x.array
-        raise SolverError(
-            f"backward Euler step {self.steps + 1} from t = {self.time:.6g} failed "
-            f"{self.max_cuts + 1} times (last dt = {2 * dt:.3g}): Newton reason "
-            f"{result.reason_name}",
-            reason_name=result.reason_name,
-            step_index=self.steps + 1,
-            time_reached=self.time,
-            time_tried=self.time + 2 * dt,
-        )
+        check = None
+        if self.max_new_inverted is not None:
+            before = self._inverted_cells()
+
+            def check(result: SolveResult) -> str | None:
+                new = self._inverted_cells() - before
+                if new > self.max_new_inverted:
+                    return f"the step inverted {new} more cells (limit {self.max_new_inverted})"
+                return None
+
+        def failure(start: float, end: float, result: SolveResult) -> str:
+            return (
+                f"time step {self.steps + 1} from t = {start:.6g} failed "
+                f"{self.controller.consecutive_cuts} times (last dt = {end - start:.3g}): "
+                f"{result.describe()}"
+            )
+
+        try:
+            size, result = take_step(
+                self.controller, self.time, remaining, self._attempt, self._restore, failure, check
+            )
+        except Exception as error:
+            if hasattr(error, "step_index"):
+                error.step_index = self.steps + 1
+            raise
+        self._commit(size)
+        return result
 
     def advance(
         self, end_time: float, on_step: Callable[[float, SolveResult], None] | None = None
     ) -> list[SolveResult]:
-        """Step until ``end_time``; after a cut the step grows back (doubling) to the original.
+        """Step until ``end_time``, the last step landing on it.
 
         ``on_step(t, result)`` is called after every completed step, so output written there
         survives a later failure.
         """
-        nominal = float(self.dt.value)
         results = []
         while self.time < end_time - 1e-12 * max(1.0, abs(end_time)):
-            self.dt.value = min(float(self.dt.value), end_time - self.time)
-            result = self.step()
+            result = self.step(end_time - self.time)
             results.append(result)
             if on_step is not None:
                 on_step(self.time, result)
-            self.dt.value = min(2.0 * float(self.dt.value), nominal)
         return results
 
     @property

@@ -17,9 +17,9 @@ from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
 from dolfinx_invertible.fem.forms import HyperelasticForms
 from dolfinx_invertible.solvers.newton import EnergyMinimizer
 from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX
-from dolfinx_invertible.solvers.problem import EnergyProblem
+from dolfinx_invertible.solvers.problem import EnergyProblem, EnergyTerm
 from dolfinx_invertible.solvers.results import SolveResult
-from dolfinx_invertible.solvers.step_limit import InversionFreeStep
+from dolfinx_invertible.solvers.step_limit import InversionFreeStep, StepLimit
 
 __all__ = ["HyperelasticProblem", "external_forms"]
 
@@ -62,18 +62,27 @@ class HyperelasticProblem:
     project
         ``True``: always the SPD-projected tangent (robust, but Newton then converges only
         linearly wherever the exact tangent is indefinite, e.g. under compression);
-        ``False``: always the exact tangent (quadratic convergence; CG may fail where the
-        energy is not locally convex); ``"auto"`` (default): every solve first runs with the
-        exact tangent and, only if that fails, again from the same start with the projected
-        one. ``result.tangent`` says which one produced the result.
-    petsc_options, options_prefix, pc
+        ``False``: always the exact tangent (quadratic convergence; a solve fails where the
+        exact tangent gives no descent direction); ``"auto"`` (default): the exact tangent,
+        and in any Newton iteration where its direction is not a descent direction or its linear
+        solve fails, the projected tangent's at the same iterate. ``result.tangent`` says which
+        were used (``"exact+projected"`` for both), ``result.projected_iterations`` how often
+        the projected one stepped in.
+    petsc_options, options_prefix, linear_solver, pc, displacement_tolerance
         See :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`; command-line options
         with the prefix override everything.
     inversion_free
         If given (a fraction in (0, 1), 0.1 in the classical method), cap every Newton step so
         that no quadrature point's volume falls below that fraction of its current value
-        (:class:`~dolfinx_invertible.solvers.step_limit.InversionFreeStep`); meant for plain barrier
-        energies such as Neo-Hookean without extension, started from an uninverted state.
+        (:class:`~dolfinx_invertible.solvers.step_limit.InversionFreeStep`); meant for plain
+        barrier energies such as Neo-Hookean without extension, started from an uninverted
+        state.
+    step_limits
+        Further step caps (:class:`~dolfinx_invertible.solvers.step_limit.StepLimit`), e.g.
+        continuous collision detection against obstacles.
+    terms
+        Energy contributions that are not forms
+        (:class:`~dolfinx_invertible.solvers.problem.EnergyTerm`), e.g. a contact barrier.
 
     Attributes
     ----------
@@ -95,8 +104,12 @@ class HyperelasticProblem:
         project: bool | str = "auto",
         petsc_options: dict[str, Any] | None = None,
         options_prefix: str = DEFAULT_OPTIONS_PREFIX,
+        linear_solver: str = "auto",
         pc: str = "gamg",
+        displacement_tolerance: float = 1.0e-10,
         inversion_free: float | None = None,
+        step_limits: Sequence[StepLimit] = (),
+        terms: Sequence[EnergyTerm] = (),
     ):
         mesh = u.function_space.mesh
         if project not in (True, False, "auto"):
@@ -124,28 +137,36 @@ class HyperelasticProblem:
             residual.append(extra_residual)
             if extra_jacobian is not None:
                 jacobian.append(extra_jacobian)
-        self.energy_problem = EnergyProblem(u, energy, residual, jacobian, bcs)
-        step_limit = None
+        self.energy_problem = EnergyProblem(u, energy, residual, jacobian, bcs, terms=terms)
+        limits = list(step_limits)
         if inversion_free is not None:
-            step_limit = InversionFreeStep(
-                u, inversion_free, quadrature_degree=self.forms.quadrature_degree
+            limits.append(
+                InversionFreeStep(u, inversion_free, quadrature_degree=self.forms.quadrature_degree)
             )
         self.solver = EnergyMinimizer(
             self.energy_problem,
             petsc_options=petsc_options,
             options_prefix=options_prefix,
+            linear_solver=linear_solver,
             pc=pc,
-            step_limit=step_limit,
+            step_limits=limits,
+            tangent_switch=self.forms.set_projection if project == "auto" else None,
+            displacement_tolerance=displacement_tolerance,
         )
 
     def solve(self) -> SolveResult:
         """Solve from the current ``u``; return a :class:`~dolfinx_invertible.SolveResult`.
 
-        On failure ``u`` keeps its value from before the call (see ``result.converged``).
-        ``result.svd_share`` says how often the kernels needed the SVD during the solve.
+        On failure ``u`` keeps its value from before the call (see ``result.converged`` and
+        ``result.describe()``). ``result.svd_share`` says how often the kernels needed the SVD
+        during the solve.
         """
         self.forms.reset_path_counts()
-        result = self._solve()
+        result = self.solver.solve()
+        if self.project == "auto":
+            tangent = "exact+projected" if result.projected_iterations else "exact"
+        else:
+            tangent = "projected" if self.project else "exact"
         counts = self.forms.path_counts()
         # One reduction for all kernels: rows (points, points through the SVD).
         totals = self.u.function_space.mesh.comm.allreduce(
@@ -155,26 +176,4 @@ class HyperelasticProblem:
             kind: float(svd_points / points) if points > 0 else None
             for kind, (points, svd_points) in zip(counts, totals, strict=True)
         }
-        return dataclasses.replace(result, svd_share=shares)
-
-    def _solve(self) -> SolveResult:
-        if self.project != "auto":
-            result = self.solver.solve()
-            return dataclasses.replace(result, tangent="projected" if self.project else "exact")
-        self.forms.set_projection(False)
-        exact = self.solver.solve()
-        if exact.converged:
-            return dataclasses.replace(exact, tangent="exact")
-        self.forms.set_projection(True)
-        try:
-            projected = self.solver.solve()
-        finally:
-            self.forms.set_projection(False)
-        # Report the work of both attempts: that is what the step cost.
-        return dataclasses.replace(
-            projected,
-            tangent="projected",
-            newton_iterations=exact.newton_iterations + projected.newton_iterations,
-            linear_iterations=exact.linear_iterations + projected.linear_iterations,
-            wall_time=exact.wall_time + projected.wall_time,
-        )
+        return dataclasses.replace(result, tangent=tangent, svd_share=shares)

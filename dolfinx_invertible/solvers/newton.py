@@ -1,9 +1,12 @@
-"""Newton's method on an energy: PETSc SNES ``newtonls`` with an energy line search.
+"""Newton's method on an energy: PETSc SNES ``newtonls`` with the minimiser's own line search.
 
 :class:`EnergyMinimizer` minimises the total potential of an
-:class:`~dolfinx_invertible.solvers.problem.EnergyProblem`: the energy is the SNES objective, so
-the backtracking line search works on it; conjugate gradients are preconditioned by algebraic
-multigrid that knows the rigid-body modes.
+:class:`~dolfinx_invertible.solvers.problem.EnergyProblem`. SNES computes the Newton direction;
+the minimiser judges it in the line search's pre-check: it replaces a failed or non-descent
+direction of the exact tangent by the projected tangent's (where the caller can switch), caps
+the step (step limits such as the inversion-free cap), then backtracks on the energy. Its own
+convergence test uses tolerances scaled to the problem, so that scaling the stiffness, the
+density and the loads by any factor leaves the iterations unchanged.
 """
 
 from __future__ import annotations
@@ -12,59 +15,84 @@ import contextlib
 import dataclasses
 import math
 import time
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.fem.checks import mean_cell_size
 from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
 from dolfinx_invertible.solvers.options import (
     DEFAULT_OPTIONS_PREFIX,
     DEFAULT_PETSC_OPTIONS,
+    linear_solver_options,
     options_in_database,
 )
 from dolfinx_invertible.solvers.problem import EnergyProblem
-from dolfinx_invertible.solvers.results import SolveResult, snes_reason_name
+from dolfinx_invertible.solvers.results import SolveResult, ksp_reason_name, snes_reason_name
 from dolfinx_invertible.solvers.step_limit import StepLimit
 
 __all__ = ["EnergyMinimizer"]
 
+_REASONS = PETSc.SNES.ConvergedReason
+# The rounding error of an energy (a sum over cells of sums over quadrature points of terms that
+# may cancel) in units of ε times its scale; generous, so that noise is never taken for progress.
+_ROUNDING = 100.0 * np.finfo(np.float64).eps
 
-@dataclasses.dataclass(frozen=True)
-class _LineSearchStart:
-    """What the line search knows at its starting point x (see ``EnergyMinimizer._objective``)."""
 
-    handle: int  # of the PETSc vector x
-    energy: float
-    energy_scale: float  # sum of the absolute values of the energy forms
-    slope: float  # F(x)·y for the Newton step y
-    residual_norm: float
+@dataclasses.dataclass
+class _SolveState:
+    """What one solve's callbacks share."""
+
+    tolerance: float = 0.0
+    initial_norm: float | None = None
+    failure: tuple[int, str, str] | None = None  # (SNES reason, stage, detail)
+    converged_detail: str | None = None
+    projected_iterations: int = 0
 
 
 class EnergyMinimizer:
-    """Newton's method (PETSc SNES ``newtonls``) for an :class:`EnergyProblem`.
+    """Newton's method (PETSc SNES ``newtonls``) minimising an :class:`EnergyProblem`.
 
     Not to be confused with ``dolfinx.nls.petsc.NewtonSolver``: this one drives PETSc SNES and
-    can minimise an energy. With energy forms it is an energy minimiser: Π is the SNES objective
-    and the backtracking line search ``bt`` shortens a step until Π does not rise (PETSc's test
-    admits a rise of α·λ·F·y with α = 1e-4), which keeps Newton from jumping into inverted or
-    otherwise high-energy states; an energy that cannot be evaluated (NaN) counts as +inf. Near
-    the solution, where Π can no longer resolve the progress, the residual decides instead (see
-    ``_objective``). Without energy forms (a material that only defines a stress) there is
-    nothing to backtrack on; the line search is then ``l2``, which minimises the residual norm
-    along the Newton direction.
+    minimises an energy. Every Newton iteration:
 
-    The linear solver is conjugate gradients (the tangent of an energy is symmetric; pass
-    ``ksp_type`` for a non-symmetric one, and note that CG fails on an indefinite tangent, which
-    load stepping then answers with a smaller step) preconditioned by GAMG, which is given the
-    rigid-body modes as near-nullspace; ``pc="hypre"`` selects BoomerAMG instead, which does not
-    use them.
+    1. SNES assembles the tangent and solves for the Newton direction (``linear_solver``).
+    2. If that linear solve failed or its direction is not a descent direction (the exact
+       tangent is indefinite there) and ``tangent_switch`` is given, the direction is computed
+       again from the projected tangent at the same iterate (``result.projected_iterations``
+       counts these). A failure that remains ends the solve at the stage "linear solve" or
+       "line search".
+    3. ``step_limits`` cap the step (e.g. the inversion-free cap).
+    4. Backtracking on the energy Π: a step is accepted when Π decreases by the Armijo amount
+       (``sufficient_decrease`` times the exact directional derivative; the full Newton step
+       whenever it qualifies). Where the change of Π is below Π's own rounding error, the
+       residual decides instead: the step is accepted if it reduces the residual norm. If no
+       step of up to ``max_backtracks`` halvings qualifies, the solve ends at the stage "line
+       search", unless the predicted decrease itself is below rounding, in which case the
+       iterate is converged as far as floating point can tell.
+
+    A problem without energy forms (a stress-only material such as IFE) has nothing to
+    backtrack on; its line search is PETSc's ``l2``, which minimises the residual norm along the
+    direction (steps 2 and 3 still apply).
+
+    The solve is converged when the residual norm (Dirichlet rows included, as SNES measures
+    it) is at most ``max(atol, rtol · ‖r₀‖)``. ``rtol`` is ``snes_rtol`` (default 1e-9). ``atol``
+    is ``snes_atol`` if given; by default it is scaled to the problem: the residual that a
+    displacement of ``displacement_tolerance`` (1e-10) times the mean cell size on every free
+    dof would produce through the diagonal of the tangent, ``η · h · k · √n`` with k the typical
+    (median) magnitude of a free diagonal entry of the last tangent and n the free dofs. It scales
+    with the stiffness, the density (through the mass of a dynamic step) and hence with the
+    loads, so a problem whose material, density and loads are all scaled by one factor takes
+    the same iterations; a solve that starts at a solution takes none.
 
     Options are set in this order, later ones winning: our defaults (see
-    ``DEFAULT_PETSC_OPTIONS``, tolerances snes_rtol 1e-9, snes_atol 1e-10, snes_max_it 50,
-    ksp_rtol 1e-10), ``petsc_options``, then options already in PETSc's database under
-    ``options_prefix``, such as ``-dolfinx_invertible_snes_monitor`` on the command line.
+    :data:`~dolfinx_invertible.solvers.options.DEFAULT_PETSC_OPTIONS` and
+    :func:`~dolfinx_invertible.solvers.options.linear_solver_options`), ``petsc_options``, then
+    options already in PETSc's database under ``options_prefix``, such as
+    ``-dolfinx_invertible_snes_monitor`` on the command line.
 
     Parameters
     ----------
@@ -75,20 +103,35 @@ class EnergyMinimizer:
         ``None`` as a value sets a flag.
     options_prefix
         Prefix of the SNES, its KSP and PC in PETSc's options database.
+    linear_solver
+        ``"auto"`` (default): a sparse direct solve up to
+        :data:`~dolfinx_invertible.solvers.options.DIRECT_SOLVE_LIMIT` unknowns, conjugate
+        gradients with ``pc`` above; or ``"direct"``, ``"iterative"``.
     pc
-        ``"gamg"`` (default), ``"hypre"`` for BoomerAMG, or any other PETSc PC type.
-    step_limit
-        Optional object with ``largest_step(direction, sign) -> float`` (e.g.
-        :class:`~dolfinx_invertible.solvers.step_limit.InversionFreeStep`): each Newton step is
-        scaled down to it before the energy line search.
+        Preconditioner of the iterative solver: ``"gamg"`` (default; given the rigid-body
+        modes), ``"hypre"`` for BoomerAMG, or any other PETSc PC type.
+    step_limits
+        Step caps applied before the line search, each with ``largest_step(direction, sign)``
+        (:class:`~dolfinx_invertible.solvers.step_limit.StepLimit`); the smallest wins.
+    tangent_switch
+        ``tangent_switch(projected)`` switches the tangent that the problem's Jacobian
+        assembles between exact (``False``, the state between iterations) and SPD-projected
+        (``True``); given, the projected tangent replaces a failed exact one (step 2 above).
+    displacement_tolerance
+        η of the default absolute tolerance, relative to the mean cell size.
+    sufficient_decrease
+        Armijo constant of the energy line search.
+    max_backtracks
+        Halvings of the step before the line search gives up.
 
     Attributes
     ----------
     snes
         The PETSc SNES, e.g. for monitors.
     line_search
-        SNES line search type in effect: ``"bt"`` with energy, ``"l2"`` without, unless
-        overridden by the options.
+        ``"energy"`` (ours) or ``"l2"`` (PETSc's, without energy), unless the options override.
+    linear_solver
+        ``"direct"`` or ``"iterative"``: what ``"auto"`` chose.
     """
 
     def __init__(
@@ -97,47 +140,235 @@ class EnergyMinimizer:
         *,
         petsc_options: dict[str, Any] | None = None,
         options_prefix: str = DEFAULT_OPTIONS_PREFIX,
+        linear_solver: str = "auto",
         pc: str = "gamg",
-        step_limit: StepLimit | None = None,
+        step_limits: Sequence[StepLimit] = (),
+        tangent_switch: Callable[[bool], None] | None = None,
+        displacement_tolerance: float = 1.0e-10,
+        sufficient_decrease: float = 1.0e-4,
+        max_backtracks: int = 30,
     ) -> None:
+        if not (math.isfinite(displacement_tolerance) and displacement_tolerance > 0.0):
+            raise ValueError(
+                f"displacement_tolerance must be a number > 0, got {displacement_tolerance!r}"
+            )
         self.problem = problem
         self.u = problem.u
-        self.step_limit = step_limit
+        self.step_limits = list(step_limits)
+        self.tangent_switch = tangent_switch
+        self.displacement_tolerance = float(displacement_tolerance)
+        self.sufficient_decrease = float(sufficient_decrease)
+        self.max_backtracks = int(max_backtracks)
         self.options_prefix = options_prefix
+
+        space = problem.u.function_space
+        dimension = space.mesh.geometry.dim
+        global_size = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
         options = dict(DEFAULT_PETSC_OPTIONS)
-        options["snes_linesearch_type"] = "bt" if problem.has_energy else "l2"
-        options["pc_type"] = pc
-        if pc == "hypre":
-            options["pc_hypre_type"] = "boomeramg"
-        for name, value in (petsc_options or {}).items():
-            options[name.lstrip("-")] = value
+        if not problem.has_energy:
+            options["snes_linesearch_type"] = "l2"
+        solver_options = linear_solver_options(
+            linear_solver, pc, global_size, dimension, problem.comm.size
+        )
+        options.update(solver_options)
+        self.linear_solver = "direct" if solver_options["ksp_type"] == "preonly" else "iterative"
+        given = {name.lstrip("-"): value for name, value in (petsc_options or {}).items()}
+        options.update(given)
         self._options = options
+        database = PETSc.Options(options_prefix)
+        self._user_atol = given.get("snes_atol")
+        if database.hasName("snes_atol"):
+            self._user_atol = database.getReal("snes_atol")
 
         self._x = problem.create_vector()
         self._residual = problem.create_vector()
         self._backup = problem.create_vector()
+        self._trial = problem.create_vector()
+        self._work = problem.create_vector()
+        self._diagonal = problem.create_vector()
         self._matrix = problem.create_matrix()
-        self._matrix.setNearNullSpace(rigid_body_near_nullspace(problem.u.function_space))
+        self._matrix.setNearNullSpace(rigid_body_near_nullspace(space))
+        self._cell_size = mean_cell_size(space.mesh)
+        self._stiffness: tuple[float, int] | None = None  # typical |K_ii|, free dofs
+        self._state = _SolveState()
 
-        comm = problem.comm
-        self.snes = PETSc.SNES().create(comm)
+        self.snes = PETSc.SNES().create(problem.comm)
         self.snes.setOptionsPrefix(options_prefix)
         self.snes.setFunction(problem.F, self._residual)
-        self.snes.setJacobian(problem.J, self._matrix, self._matrix)
-        self._work = problem.create_vector()
-        self._line_search_start: _LineSearchStart | None = None
-        if problem.has_energy:
-            self.snes.setObjective(self._objective)
-            self.snes.setLineSearchPreCheck(self._start_line_search)
+        self.snes.setJacobian(self._jacobian, self._matrix, self._matrix)
+        self.snes.setLineSearchPreCheck(self._precheck)
+        self.snes.setConvergenceTest(self._converged)
         self.snes.setConvergenceHistory(reset=True)
         with self._options_in_effect():
             self.snes.setFromOptions()
             # petsc4py 3.18 has no getter for the line search, so read what setFromOptions read.
-            self.line_search = PETSc.Options(options_prefix).getString("snes_linesearch_type")
+            chosen = PETSc.Options(options_prefix).getString("snes_linesearch_type")
+        self.line_search = "energy" if chosen == "basic" and problem.has_energy else chosen
 
     def _options_in_effect(self) -> contextlib.AbstractContextManager[None]:
         return options_in_database(self.options_prefix, self._options)
 
+    # -- tolerances ---------------------------------------------------------------------------
+    def _jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
+        self.problem.J(snes, x, A, P)
+        self._record_stiffness(A)
+
+    def _record_stiffness(self, matrix: PETSc.Mat) -> None:
+        # The typical magnitude of a free diagonal entry: a median, because the exact tangent
+        # can carry a few huge entries (near the kink σᵢ + σⱼ = 0 of an inverted element) that
+        # say nothing about the stiffness of the body.
+        matrix.getDiagonal(self._diagonal)
+        local = np.abs(self._diagonal.getArray(readonly=True)[self.problem.free_owned])
+        median = float(np.median(local)) if len(local) else 0.0
+        comm = self.problem.comm
+        count = comm.allreduce(len(local))
+        typical = comm.allreduce(median * len(local)) / max(count, 1)
+        self._stiffness = (typical, count)
+
+    def _stiffness_scale(self, x: PETSc.Vec) -> tuple[float, int]:
+        """Return the typical free diagonal entry of the tangent and the number of free dofs."""
+        if self._stiffness is None:
+            # First solve: no tangent assembled yet, so assemble the one SNES is about to.
+            self._jacobian(None, x, self._matrix, self._matrix)
+        return self._stiffness
+
+    def absolute_tolerance(self) -> float:
+        """Return the absolute residual tolerance in effect (see the class description)."""
+        if self._user_atol is not None:
+            return float(self._user_atol)
+        typical, count = self._stiffness_scale(self._x)
+        return self.displacement_tolerance * self._cell_size * typical * math.sqrt(count)
+
+    def _energy_rounding(self, terms: np.ndarray) -> float:
+        """Return an estimate of the rounding error of Π.
+
+        ε times the terms' magnitudes and the energy scale of a one-cell-size deformation,
+        h² · (typical diagonal entry) · (free dofs), which bounds the cancellation inside the
+        energy density even where Π itself is near zero (a body at rest).
+        """
+        typical, count = self._stiffness_scale(self._x)
+        scale = float(np.sum(np.abs(terms))) + self._cell_size**2 * typical * count
+        return _ROUNDING * scale
+
+    # -- SNES callbacks -----------------------------------------------------------------------
+    def _converged(self, snes, iteration: int, norms) -> int:
+        state = self._state
+        fnorm = float(norms[2])
+        if state.failure is not None:
+            return state.failure[0]
+        if state.converged_detail is not None:
+            return _REASONS.CONVERGED_SNORM_RELATIVE
+        if not math.isfinite(fnorm):
+            state.failure = (_REASONS.DIVERGED_FNORM_NAN, "NaN", "the residual is not finite")
+            return _REASONS.DIVERGED_FNORM_NAN
+        if iteration == 0:
+            state.initial_norm = fnorm
+            state.tolerance = self.absolute_tolerance()
+        rtol, _, _, max_it = snes.getTolerances()
+        if fnorm <= state.tolerance:
+            return _REASONS.CONVERGED_FNORM_ABS
+        if iteration > 0 and fnorm <= rtol * state.initial_norm:
+            return _REASONS.CONVERGED_FNORM_RELATIVE
+        if iteration >= max_it:
+            state.failure = (
+                _REASONS.DIVERGED_MAX_IT,
+                "iteration cap",
+                f"residual {fnorm:.3e} above the tolerance {state.tolerance:.3e} after "
+                f"{max_it} iterations",
+            )
+            return _REASONS.DIVERGED_MAX_IT
+        return _REASONS.ITERATING
+
+    def _fail(self, y: PETSc.Vec, reason: int, stage: str, detail: str) -> None:
+        self._state.failure = (reason, stage, detail)
+        y.set(0.0)  # SNES then stays at x, and the convergence test reports the failure
+
+    def _direction_ok(self, ksp: PETSc.KSP, y: PETSc.Vec) -> tuple[bool, str]:
+        reason = ksp.getConvergedReason()
+        if reason < 0:
+            return False, f"the linear solve failed ({ksp_reason_name(reason)})"
+        if not self.problem.has_energy:
+            return True, ""
+        slope = self._residual.dot(y)
+        if not (math.isfinite(slope) and slope > 0.0):
+            return False, "the Newton direction is not a descent direction"
+        return True, ""
+
+    def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        # SNES moves to x − λ·y after this: λ = 1 with our line search, PETSc's choice for l2.
+        ksp = self.snes.getKSP()
+        ok, why = self._direction_ok(ksp, y)
+        if not ok and self.tangent_switch is not None:
+            self._projected_direction(x, y, ksp)
+            ok, why = self._direction_ok(ksp, y)
+        if not ok:
+            stage = "linear solve" if ksp.getConvergedReason() < 0 else "line search"
+            reason = (
+                _REASONS.DIVERGED_LINEAR_SOLVE
+                if stage == "linear solve"
+                else _REASONS.DIVERGED_LINE_SEARCH
+            )
+            self._fail(y, reason, stage, why)
+            return
+        largest = 1.0
+        for limit in self.step_limits:
+            largest = min(largest, limit.largest_step(y, sign=-1.0))
+        if largest < 1.0:
+            y.scale(largest)
+        if self.problem.has_energy:
+            self._backtrack(x, y)
+
+    def _projected_direction(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
+        self.tangent_switch(True)
+        try:
+            self._jacobian(None, x, self._matrix, self._matrix)
+            with self._options_in_effect():
+                ksp.setOperators(self._matrix, self._matrix)
+                ksp.solve(self._residual, y)
+        finally:
+            self.tangent_switch(False)
+        self._state.projected_iterations += 1
+
+    def _energy_at(self, vector: PETSc.Vec) -> tuple[float, np.ndarray]:
+        self.problem.update_solution(vector)
+        terms = self.problem.energy_terms()
+        total = float(np.sum(terms))
+        return (total if math.isfinite(total) else math.inf), terms
+
+    def _backtrack(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        problem = self.problem
+        start, terms = self._energy_at(x)
+        rounding = self._energy_rounding(terms)
+        residual_norm = self._residual.norm()
+        step = 1.0
+        for _ in range(self.max_backtracks + 1):
+            decrease = self._residual.dot(y)  # −(directional derivative) of this step
+            self._trial.waxpy(-1.0, y, x)
+            energy, _ = self._energy_at(self._trial)
+            if energy <= start - self.sufficient_decrease * decrease:
+                return
+            if abs(energy - start) <= rounding:
+                problem.F(None, self._trial, self._work)
+                if self._work.norm() < residual_norm:
+                    return
+            y.scale(0.5)
+            step *= 0.5
+        y.scale(1.0 / step)
+        if 0.5 * self._residual.dot(y) <= rounding:
+            self._state.converged_detail = (
+                "the predicted energy decrease is below the energy's rounding error and no step "
+                "reduces the residual: converged as far as floating point resolves"
+            )
+            y.set(0.0)
+            return
+        self._fail(
+            y,
+            _REASONS.DIVERGED_LINE_SEARCH,
+            "line search",
+            f"no step down to {step:.1e} of the Newton step decreases the energy",
+        )
+
+    # -- solving ------------------------------------------------------------------------------
     def newton_direction(self, direction: PETSc.Vec) -> int:
         """Compute the Newton direction at the current ``u`` as an iteration of :meth:`solve` does.
 
@@ -163,7 +394,7 @@ class EnergyMinimizer:
         _compat.set_dirichlet_values(self._x, self.problem.bcs)
         try:
             self.problem.F(self.snes, self._x, self._residual)
-            self.problem.J(self.snes, self._x, self._matrix, self._matrix)
+            self._jacobian(self.snes, self._x, self._matrix, self._matrix)
             ksp = self.snes.getKSP()
             with self._options_in_effect():
                 ksp.setOperators(self._matrix, self._matrix)
@@ -176,9 +407,9 @@ class EnergyMinimizer:
         """Solve from the current ``u`` with the current loads and boundary values.
 
         The Dirichlet values are imposed on the initial guess, so every Newton direction keeps
-        them. Newton iterates on a separate vector; ``u`` receives the solution only if SNES
+        them. Newton iterates on a separate vector; ``u`` receives the solution only if the solve
         converged and is otherwise left at its value before the call. Divergence is reported in
-        the result, not raised.
+        the result (with the stage that failed), not raised.
 
         Returns
         -------
@@ -191,15 +422,13 @@ class EnergyMinimizer:
         u_vector.copy(self._backup)
         u_vector.copy(self._x)
         _compat.set_dirichlet_values(self._x, problem.bcs)
-        self._line_search_start = None
+        self._state = state = _SolveState()
         try:
             with self._options_in_effect():
                 self.snes.solve(None, self._x)
         except BaseException:
             self._restore(u_vector)
             raise
-        finally:
-            self._line_search_start = None
 
         reason = int(self.snes.getConvergedReason())
         converged = reason > 0
@@ -210,6 +439,19 @@ class EnergyMinimizer:
         else:
             self._restore(u_vector)
         history, _ = self.snes.getConvergenceHistory()
+        stage, detail = None, ""
+        if state.failure is not None:
+            _, stage, detail = state.failure
+        elif not converged:
+            stage, detail = "line search", f"SNES stopped with {snes_reason_name(reason)}"
+        elif state.converged_detail is not None:
+            detail = state.converged_detail
+        else:
+            detail = (
+                f"residual {float(self.snes.getFunctionNorm()):.3e} within the tolerance "
+                f"{max(state.tolerance, 0.0):.3e}"
+            )
+        ksp_reason = self.snes.getKSP().getConvergedReason()
         return SolveResult(
             converged=converged,
             reason=reason,
@@ -220,56 +462,13 @@ class EnergyMinimizer:
             energy=energy,
             wall_time=time.perf_counter() - start,
             residual_history=tuple(float(norm) for norm in history),
+            stage=stage,
+            detail=detail,
+            linear_reason_name=ksp_reason_name(ksp_reason) if ksp_reason != 0 else None,
+            projected_iterations=state.projected_iterations,
+            tolerance=state.tolerance,
         )
 
     def _restore(self, u_vector: PETSc.Vec) -> None:
         self._backup.copy(u_vector)
         self.problem.u.x.scatter_forward()
-
-    def _start_line_search(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        # The line search evaluates the objective at x first; computing it here costs nothing
-        # extra, and the per-form values give the scale of the energy's rounding error.
-        self.problem.update_solution(x)
-        if self.step_limit is not None:
-            # SNES moves to x − λ y: cap y before the energy backtracking starts.
-            largest = self.step_limit.largest_step(y, sign=-1.0)
-            if largest < 1.0:
-                y.scale(largest)
-        terms = self.problem.energy_terms()
-        energy = float(np.sum(terms))
-        gradient = self._residual  # SNES keeps the residual at x in the vector it was given
-        self._line_search_start = _LineSearchStart(
-            handle=x.handle,
-            energy=energy if not math.isnan(energy) else math.inf,
-            energy_scale=float(np.sum(np.abs(terms))),
-            slope=float(gradient.dot(y)),
-            residual_norm=float(gradient.norm()),
-        )
-
-    def _objective(self, snes: PETSc.SNES, x: PETSc.Vec) -> float:
-        """Return the SNES objective Π, made usable once Π stops resolving Newton's progress.
-
-        Close to a solution the decrease of Π along a Newton step, about half the slope F·y, falls
-        below the rounding error of Π itself (a sum over cells of terms much larger than the
-        decrease); the backtracking test then compares noise and fails at random. PETSc would
-        stop there with the residual still above tolerance. So a step that the energy test would
-        reject is accepted anyway if it increased Π by no more than a rounding-sized amount
-        (1e-6 of the energy's scale) and at least halved the residual norm: in that regime the
-        residual is the reliable measure of progress. Accepting means returning a value below
-        the starting energy, which passes PETSc's test whichever sign convention it uses for the
-        slope (PETSc 3.18 uses +F·y, so its "sufficient decrease" admits a rise of α·λ·F·y).
-        """
-        start = self._line_search_start
-        if start is None:
-            return self.problem.objective(snes, x)
-        if x.handle == start.handle:
-            return start.energy
-        energy = self.problem.objective(snes, x)
-        if energy <= start.energy or not math.isfinite(start.energy):
-            return energy
-        if energy - start.energy > 1.0e-6 * max(start.energy_scale, abs(start.energy)):
-            return energy
-        self.problem.F(snes, x, self._work)
-        if self._work.norm() > 0.5 * start.residual_norm:
-            return energy
-        return start.energy - abs(start.slope)

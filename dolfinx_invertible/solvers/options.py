@@ -1,7 +1,8 @@
 """PETSc options for the solvers: our defaults and how they meet the user's and the command line's.
 
-Options are set in this order, later ones winning: :data:`DEFAULT_PETSC_OPTIONS`, the options a
-caller passes, then options already in PETSc's database under the solver's prefix (such as
+Options are set in this order, later ones winning: :data:`DEFAULT_PETSC_OPTIONS` with the
+linear solver of :func:`linear_solver_options`, the options a caller passes, then options
+already in PETSc's database under the solver's prefix (such as
 ``-dolfinx_invertible_snes_monitor`` on the command line).
 """
 
@@ -13,22 +14,91 @@ from typing import Any
 
 from petsc4py import PETSc
 
-__all__ = ["DEFAULT_OPTIONS_PREFIX", "DEFAULT_PETSC_OPTIONS", "options_in_database"]
+__all__ = [
+    "DEFAULT_OPTIONS_PREFIX",
+    "DEFAULT_PETSC_OPTIONS",
+    "DIRECT_SOLVE_LIMIT",
+    "LINEAR_SOLVERS",
+    "linear_solver_options",
+    "options_in_database",
+]
 
 DEFAULT_OPTIONS_PREFIX = "dolfinx_invertible_"
 
-# ksp_rtol is tight because an inexact linear solve caps Newton's quadratic rate. snes_stol is 0
-# because a line search that shortens the step also makes the step norm small far from a
-# solution; convergence is decided on the residual alone.
+# The line search is the minimiser's own (energy backtracking in the step's pre-check), so
+# SNES takes the step it is handed ("basic"). The convergence test is the minimiser's own too
+# (scale-invariant tolerances); snes_rtol and snes_atol still apply where given. A failed or
+# non-descent linear solve is answered by the minimiser (projected tangent, or a reported
+# failure), so SNES must not stop at the first one.
 DEFAULT_PETSC_OPTIONS: dict[str, Any] = {
     "snes_type": "newtonls",
+    "snes_linesearch_type": "basic",
     "snes_rtol": 1.0e-9,
-    "snes_atol": 1.0e-10,
     "snes_stol": 0.0,
     "snes_max_it": 50,
-    "ksp_type": "cg",
-    "ksp_rtol": 1.0e-10,
+    "snes_max_linear_solve_fail": 1_000_000,
 }
+
+#: ``linear_solver`` choices of the minimiser.
+LINEAR_SOLVERS = ("auto", "direct", "iterative")
+
+#: Global number of unknowns up to which ``linear_solver="auto"`` factorises (3D; 2D allows 4×).
+#: Below it a sparse direct solve is as fast as CG + AMG on this project's problems and immune to
+#: what slows or breaks AMG: near-incompressibility (λ/μ of 500 and more), P2 elements,
+#: the indefinite exact tangent and an AMG preconditioner that stops being positive definite.
+DIRECT_SOLVE_LIMIT = 60_000
+
+
+def _direct_solver_package(comm_size: int) -> str | None:
+    for package in ("mumps", "superlu_dist"):
+        if PETSc.Sys.hasExternalPackage(package):
+            return package
+    # PETSc's own factorisation is serial only.
+    return "petsc" if comm_size == 1 else None
+
+
+def linear_solver_options(
+    linear_solver: str, pc: str, global_size: int, dimension: int, comm_size: int
+) -> dict[str, Any]:
+    """Return the KSP/PC options of a linear solver choice.
+
+    Parameters
+    ----------
+    linear_solver
+        ``"direct"`` (a sparse factorisation: MUMPS, SuperLU_dist or PETSc's own in serial),
+        ``"iterative"`` (conjugate gradients preconditioned by ``pc``) or ``"auto"``: direct up
+        to :data:`DIRECT_SOLVE_LIMIT` unknowns (four times that in 2D) when a parallel-capable
+        factorisation is available, iterative above.
+    pc
+        Preconditioner of the iterative solver: ``"gamg"`` (with the rigid-body
+        near-nullspace), ``"hypre"`` (BoomerAMG) or any PETSc PC type.
+    global_size
+        Number of unknowns over all ranks.
+    dimension
+        Space dimension, 2 or 3.
+    comm_size
+        Number of MPI ranks.
+    """
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
+    package = _direct_solver_package(comm_size)
+    if linear_solver == "auto":
+        limit = DIRECT_SOLVE_LIMIT * (4 if dimension == 2 else 1)
+        linear_solver = "direct" if package is not None and global_size <= limit else "iterative"
+    if linear_solver == "direct":
+        if package is None:
+            raise ValueError(
+                "linear_solver='direct' needs MUMPS or SuperLU_dist in parallel; this PETSc has "
+                "neither (use linear_solver='iterative')"
+            )
+        # Cholesky (LDLᵀ in MUMPS): the tangents are symmetric but the exact one may be
+        # indefinite. SuperLU_dist and PETSc's own have no symmetric indefinite solver: LU.
+        factor = "cholesky" if package == "mumps" else "lu"
+        return {"ksp_type": "preonly", "pc_type": factor, "pc_factor_mat_solver_type": package}
+    options: dict[str, Any] = {"ksp_type": "cg", "ksp_rtol": 1.0e-10, "pc_type": pc}
+    if pc == "hypre":
+        options["pc_hypre_type"] = "boomeramg"
+    return options
 
 
 @contextlib.contextmanager

@@ -1,8 +1,9 @@
 """The form-sum assembler: Π(u), its gradient and tangent as sums of compiled DOLFINx forms.
 
 Forms of any origin are summed: UFL forms compiled by ``dolfinx.fem.form`` and forms built around
-custom cell kernels alike. Dirichlet conditions are applied the way DOLFINx's own
-``NonlinearProblem`` applies them.
+custom cell kernels alike, plus terms that are not forms at all (:class:`EnergyTerm`, e.g. a
+contact barrier). Dirichlet conditions are applied the way DOLFINx's own ``NonlinearProblem``
+applies them.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Protocol
 
 from mpi4py import MPI
 
@@ -21,7 +22,34 @@ from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
 
-__all__ = ["EnergyProblem"]
+__all__ = ["EnergyProblem", "EnergyTerm"]
+
+
+class EnergyTerm(Protocol):
+    """A contribution to Π that is not a DOLFINx form, e.g. a contact barrier.
+
+    Evaluated at the current ``u`` of the problem (owned values and ghosts up to date).
+    """
+
+    def energy(self) -> float:
+        """Return this rank's share of the term's value (the problem sums over ranks)."""
+        ...
+
+    def add_residual(self, residual: np.ndarray) -> None:
+        """Add the gradient into the local residual array.
+
+        ``residual`` is laid out like ``u.x.array`` (owned then ghost dofs, components
+        interleaved); contributions to ghost dofs are summed into their owners afterwards.
+        """
+        ...
+
+    def add_tangent(self, matrix: PETSc.Mat, constrained: np.ndarray) -> None:
+        """Add the (positive semidefinite) Hessian with local indices and ``ADD_VALUES``.
+
+        Rows and columns listed in ``constrained`` (local indices of Dirichlet dofs) must be left
+        out. The matrix is flushed before and assembled after this call.
+        """
+        ...
 
 
 def _as_form_list(forms: Any, rank: int, name: str) -> list:
@@ -59,6 +87,9 @@ class EnergyProblem:
         one sets the sparsity pattern (see :meth:`create_matrix`).
     bcs
         Dirichlet conditions on the space of ``u``.
+    terms
+        :class:`EnergyTerm` contributions beyond the forms; they add to the energy, the residual
+        and the tangent alike.
     """
 
     def __init__(
@@ -68,6 +99,8 @@ class EnergyProblem:
         residual: Sequence[Any] | Any,
         jacobian: Sequence[Any] | Any,
         bcs: Sequence[Any] | None = None,
+        *,
+        terms: Sequence[EnergyTerm] = (),
     ) -> None:
         self.u = u
         self.energy_forms = _as_form_list(energy, 0, "energy")
@@ -78,9 +111,25 @@ class EnergyProblem:
         if not self.jacobian_forms:
             raise ValueError("jacobian: at least one compiled bilinear form is required")
         self.bcs = list(bcs or [])
+        self.terms = list(terms)
         self.comm = u.function_space.mesh.comm
         self._u_vector = _compat.petsc_vector(u)
         self._pattern_checked = False
+        space = u.function_space
+        block_size = space.dofmap.index_map_bs
+        local_size = space.dofmap.index_map.size_local + space.dofmap.index_map.num_ghosts
+        #: Local indices (owned and ghost, components unrolled) of the Dirichlet dofs.
+        self.constrained_dofs = np.unique(
+            np.concatenate(
+                [np.zeros(0, dtype=np.int32)]
+                + [_compat.constrained_local_dofs(bc) for bc in self.bcs]
+            )
+        ).astype(np.int32)
+        owned = space.dofmap.index_map.size_local * block_size
+        free = np.ones(local_size * block_size, dtype=bool)
+        free[self.constrained_dofs] = False
+        #: Mask of the owned dofs (components unrolled) that no Dirichlet condition fixes.
+        self.free_owned = free[:owned]
 
     @property
     def has_energy(self) -> bool:
@@ -111,9 +160,11 @@ class EnergyProblem:
         self.u.x.scatter_forward()
 
     def energy_terms(self) -> np.ndarray:
-        """Return the value of each energy form at the current ``u``, summed over all ranks."""
+        """Return each energy form's and term's value at the current ``u``, summed over ranks."""
         local = np.array(
-            [dolfinx.fem.assemble_scalar(form) for form in self.energy_forms], dtype=np.float64
+            [dolfinx.fem.assemble_scalar(form) for form in self.energy_forms]
+            + [term.energy() for term in self.terms],
+            dtype=np.float64,
         )
         return self.comm.allreduce(local, op=MPI.SUM)
 
@@ -142,6 +193,11 @@ class EnergyProblem:
             b_local.set(0.0)
         for form in self.residual_forms:
             dolfinx.fem.petsc.assemble_vector(b, form)
+        if self.terms:
+            with b.localForm() as b_local:
+                local = b_local.array
+                for term in self.terms:
+                    term.add_residual(local)
         # The ghosted u rather than x: lifting reads ghost values, and x need not carry them.
         _compat.lift_residual(b, self.jacobian_forms, self.bcs, self._u_vector)
 
@@ -160,6 +216,9 @@ class EnergyProblem:
             for index, form in enumerate(self.jacobian_forms):
                 diagonal = 1.0 if index == last else 0.0
                 _compat.assemble_matrix_into(matrix, form, self.bcs, diagonal)
+            for term in self.terms:
+                term.add_tangent(matrix, self.constrained_dofs)
+                matrix.assemble(PETSc.Mat.AssemblyType.FLUSH)
             matrix.assemble()
         if not self._pattern_checked and len(self.jacobian_forms) > 1:
             self._pattern_checked = True

@@ -6,25 +6,32 @@ import dataclasses
 
 from petsc4py import PETSc
 
-__all__ = ["SolveResult", "SolverError", "snes_reason_name"]
+__all__ = ["STAGES", "SolveResult", "SolverError", "ksp_reason_name", "snes_reason_name"]
+
+
+#: The solver stages a failed solve names (``SolveResult.stage``).
+STAGES = ("linear solve", "line search", "iteration cap", "NaN")
 
 
 class SolverError(RuntimeError):
     """Stepping gave up: Newton failed after the largest allowed number of step cuts.
 
-    Raised by :func:`solve_load_steps`, which fills in every attribute; other steppers may give
-    only the message.
+    Raised by the stepping loops (load steps and time steps), which fill in every attribute.
 
     Attributes
     ----------
     reason_name
         PETSc SNES converged reason of the last failed attempt, e.g. ``"DIVERGED_MAX_IT"``.
+    stage
+        The solver stage that failed in the last attempt: one of :data:`STAGES`.
     step_index
-        1-based index of the load step (target pseudo-time) that could not be reached.
+        1-based index of the step that could not be completed.
     time_reached
-        Last converged pseudo-time; the solution and the load are restored to it.
+        Last completed (pseudo-)time; the solution and the loads are restored to it.
     time_tried
-        Pseudo-time of the last failed attempt.
+        (Pseudo-)time of the last failed attempt.
+    result
+        The :class:`SolveResult` of the last failed attempt.
     """
 
     def __init__(
@@ -32,21 +39,25 @@ class SolverError(RuntimeError):
         message: str,
         *,
         reason_name: str | None = None,
+        stage: str | None = None,
         step_index: int | None = None,
         time_reached: float | None = None,
         time_tried: float | None = None,
+        result: SolveResult | None = None,
     ) -> None:
         super().__init__(message)
         self.reason_name = reason_name
+        self.stage = stage
         self.step_index = step_index
         self.time_reached = time_reached
         self.time_tried = time_tried
+        self.result = result
 
 
-def _reason_names() -> dict[int, str]:
+def _reason_names(reasons) -> dict[int, str]:
     names: dict[int, str] = {}
-    for name in sorted(vars(PETSc.SNES.ConvergedReason)):
-        value = getattr(PETSc.SNES.ConvergedReason, name)
+    for name in sorted(vars(reasons)):
+        value = getattr(reasons, name)
         if name.startswith("_") or not isinstance(value, int):
             continue
         # CONVERGED_ITERATING and ITERATING share 0; keep the first in sorted order.
@@ -54,7 +65,8 @@ def _reason_names() -> dict[int, str]:
     return names
 
 
-_REASON_NAMES = _reason_names()
+_REASON_NAMES = _reason_names(PETSc.SNES.ConvergedReason)
+_KSP_REASON_NAMES = _reason_names(PETSc.KSP.ConvergedReason)
 
 
 def snes_reason_name(reason: int) -> str:
@@ -88,8 +100,22 @@ class SolveResult:
     residual_history
         Residual norms from the initial guess to the last iterate.
     tangent
-        Which tangent produced the result, where a caller chooses: ``"exact"`` or
-        ``"projected"`` (see :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`).
+        Which tangent produced the result: ``"exact"``, ``"projected"``, or ``"exact+projected"``
+        when some iterations fell back to the projected tangent (see
+        :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`).
+    stage
+        For a failed solve, the stage that failed: ``"linear solve"``, ``"line search"``,
+        ``"iteration cap"`` or ``"NaN"`` (:data:`STAGES`); ``None`` when converged.
+    detail
+        One sentence on why the solve stopped, e.g. which test converged or what failed.
+    linear_reason_name
+        PETSc KSP converged reason of the last linear solve, e.g. ``"CONVERGED_RTOL"``.
+    projected_iterations
+        Newton iterations whose direction came from the projected tangent because the exact
+        tangent's was not a descent direction or its linear solve failed.
+    tolerance
+        The absolute residual tolerance this solve used (see
+        :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`).
     svd_share
         Where the solve ran our kernels: for each kernel ("energy", "residual", "tangent") the
         share of quadrature-point evaluations, summed over ranks and all assemblies of the
@@ -107,4 +133,24 @@ class SolveResult:
     wall_time: float
     residual_history: tuple[float, ...] = ()
     tangent: str = ""
+    stage: str | None = None
+    detail: str = ""
+    linear_reason_name: str | None = None
+    projected_iterations: int = 0
+    tolerance: float = 0.0
     svd_share: dict[str, float | None] = dataclasses.field(default_factory=dict)
+
+    def describe(self) -> str:
+        """Return one line: the PETSc reason, and for a failure the stage and why."""
+        if self.converged:
+            return f"{self.reason_name} after {self.newton_iterations} Newton iterations"
+        text = f"{self.stage} failed ({self.reason_name}"
+        if self.linear_reason_name and self.stage == "linear solve":
+            text += f", KSP {self.linear_reason_name}"
+        text += f") after {self.newton_iterations} Newton iterations"
+        return text + (f": {self.detail}" if self.detail else "")
+
+
+def ksp_reason_name(reason: int) -> str:
+    """Return the name of a PETSc ``KSPConvergedReason``, e.g. -3 -> ``"DIVERGED_ITS"``."""
+    return _KSP_REASON_NAMES.get(int(reason), f"UNKNOWN_REASON_{int(reason)}")

@@ -1,7 +1,18 @@
-"""Quasi-static load stepping over a pseudo-time in (0, 1], cutting the increment on failure."""
+"""Step control shared by quasi-static load stepping and implicit time stepping.
+
+:class:`StepController` is the one cut-and-retry policy: a failed step is cut, a step that was
+easy (few Newton iterations) lets the next one grow, never beyond the nominal step the user
+asked for; after too many consecutive cuts the stepping gives up with a
+:class:`~dolfinx_invertible.solvers.results.SolverError` that names the step, the time and the
+solver stage that failed. :func:`take_step` applies it to one step; :func:`solve_load_steps`
+ramps a load over a pseudo-time in (0, 1] with it, and
+:class:`~dolfinx_invertible.solvers.dynamics.ImplicitDynamics` steps in time with it.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
@@ -11,7 +22,11 @@ import numpy as np
 from dolfinx_invertible import _compat
 from dolfinx_invertible.solvers.results import SolverError, SolveResult
 
-__all__ = ["Solvable", "solve_load_steps"]
+__all__ = ["Solvable", "StepController", "solve_load_steps", "take_step"]
+
+# Steps are sums of cuts of the nominal step; a remainder this small (relative to the nominal
+# step) is rounding, and the step goes to the target exactly.
+_SNAP = 1.0e-9
 
 
 class Solvable(Protocol):
@@ -26,6 +41,159 @@ class Solvable(Protocol):
     def solve(self) -> SolveResult:
         """Solve from the current ``u``; on failure ``u`` keeps its value."""
         ...
+
+
+class StepController:
+    """Chooses step sizes: cut after a failure, grow after an easy step, never above nominal.
+
+    Parameters
+    ----------
+    nominal
+        The largest step: the user's time step or load increment.
+    max_cuts
+        Consecutive cuts of a step before the stepping gives up.
+    cut
+        Factor applied to a step that failed, in (0, 1).
+    growth
+        Factor applied to the step after an easy one (≥ 1), up to ``nominal``.
+    easy_iterations
+        A converged step with at most this many Newton iterations counts as easy.
+
+    Attributes
+    ----------
+    step
+        The step the next attempt uses (before clipping to a target).
+    accepted
+        Sizes of the accepted steps, in order.
+    cuts
+        Total number of cuts (failed attempts).
+    """
+
+    def __init__(
+        self,
+        nominal: float,
+        *,
+        max_cuts: int = 6,
+        cut: float = 0.5,
+        growth: float = 2.0,
+        easy_iterations: int = 10,
+    ):
+        if not (math.isfinite(nominal) and nominal > 0.0):
+            raise ValueError(f"the nominal step must be a finite number > 0, got {nominal!r}")
+        if (
+            isinstance(max_cuts, bool)
+            or not isinstance(max_cuts, (int, np.integer))
+            or max_cuts < 0
+        ):
+            raise ValueError(f"max_cuts: expected a non-negative int, got {max_cuts!r}")
+        if not (0.0 < cut < 1.0):
+            raise ValueError(f"cut must lie in (0, 1), got {cut!r}")
+        if not growth >= 1.0:
+            raise ValueError(f"growth must be at least 1, got {growth!r}")
+        self.nominal = float(nominal)
+        self.max_cuts = int(max_cuts)
+        self.cut = float(cut)
+        self.growth = float(growth)
+        self.easy_iterations = int(easy_iterations)
+        self.step = self.nominal
+        self.accepted: list[float] = []
+        self.cuts = 0
+        self._consecutive_cuts = 0
+
+    def size(self, remaining: float = math.inf) -> float:
+        """Return the size of the next attempt: the current step, clipped to ``remaining``."""
+        if remaining - self.step <= _SNAP * self.nominal:
+            return remaining
+        return self.step
+
+    def succeeded(self, size: float, result: SolveResult) -> None:
+        """Record an accepted step of ``size``; an easy one lets the next step grow."""
+        self.accepted.append(size)
+        self._consecutive_cuts = 0
+        if result.newton_iterations <= self.easy_iterations:
+            self.step = min(self.nominal, max(self.step, size) * self.growth)
+
+    def failed(self, size: float) -> bool:
+        """Record a failed attempt of ``size`` and cut; ``False`` once the cuts are used up."""
+        self.cuts += 1
+        self._consecutive_cuts += 1
+        self.step = size * self.cut
+        return self._consecutive_cuts <= self.max_cuts
+
+    @property
+    def consecutive_cuts(self) -> int:
+        """Cuts since the last accepted step."""
+        return self._consecutive_cuts
+
+    def statistics(self) -> dict[str, float | int | None]:
+        """Return accepted steps, cuts and the smallest and largest accepted step."""
+        return {
+            "steps": len(self.accepted),
+            "cuts": self.cuts,
+            "step_min": min(self.accepted) if self.accepted else None,
+            "step_max": max(self.accepted) if self.accepted else None,
+        }
+
+
+def take_step(
+    controller: StepController,
+    start: float,
+    remaining: float,
+    attempt: Callable[[float, float], SolveResult],
+    restore: Callable[[float], None],
+    failure: Callable[[float, float, SolveResult], str],
+    check: Callable[[SolveResult], str | None] | None = None,
+) -> tuple[float, SolveResult]:
+    """Take one step from ``start``, cutting and retrying until it succeeds or the cuts run out.
+
+    Parameters
+    ----------
+    controller
+        The step policy.
+    start
+        The (pseudo-)time the state is at.
+    remaining
+        The step never goes past ``start + remaining`` (and lands on it when within rounding).
+    attempt
+        ``attempt(start, end)`` sets the loads or boundary values of ``end`` and solves.
+    restore
+        ``restore(start)`` puts back the state and the loads of ``start`` after a failure.
+    failure
+        ``failure(start, end, result)`` is the message of the
+        :class:`~dolfinx_invertible.solvers.results.SolverError` when the cuts are used up.
+    check
+        Optional test of a converged attempt: a reason to reject it (cut and retry) or ``None``.
+
+    Returns
+    -------
+    (size, result)
+        The accepted step and its solve.
+    """
+    while True:
+        size = controller.size(remaining)
+        result = attempt(start, start + size)
+        rejection = check(result) if (check is not None and result.converged) else None
+        if result.converged and rejection is None:
+            controller.succeeded(size, result)
+            return size, result
+        restore(start)
+        if rejection is not None:
+            result = _rejected(result, rejection)
+        if not controller.failed(size):
+            raise SolverError(
+                failure(start, start + size, result),
+                reason_name=result.reason_name,
+                stage=result.stage,
+                time_reached=start,
+                time_tried=start + size,
+                result=result,
+            )
+
+
+def _rejected(result: SolveResult, reason: str) -> SolveResult:
+    return dataclasses.replace(
+        result, converged=False, stage="step check", detail=reason, energy=None
+    )
 
 
 def _load_targets(steps: int | Sequence[float]) -> list[float]:
@@ -59,14 +227,16 @@ def solve_load_steps(
     *,
     max_cuts: int = 6,
     on_step: Callable[[float, SolveResult], None] | None = None,
+    controller: StepController | None = None,
 ) -> list[SolveResult]:
     """Quasi-static load stepping over a pseudo-time t from 0 to 1, cutting steps on failure.
 
     For each pseudo-time, ``update_load(t)`` sets the loads and boundary values (e.g. Constants
     scaled by t) and the solver starts from the previous solution. When Newton fails, the last
     converged solution and load (``update_load`` of that pseudo-time, possibly 0) are restored
-    and the increment is halved. After a success the increment doubles again, never past the
-    next target pseudo-time, so every target in ``steps`` is hit exactly.
+    and the increment is cut (:class:`StepController`); after an easy step it grows again,
+    never past the largest spacing of ``steps`` nor past the next target, so every target is
+    hit exactly.
 
     Parameters
     ----------
@@ -79,10 +249,13 @@ def solve_load_steps(
     steps
         Number of equal steps, or increasing target pseudo-times in (0, 1] ending with 1.
     max_cuts
-        Largest number of consecutive halvings before giving up.
+        Largest number of consecutive cuts before giving up (when no ``controller`` is given).
     on_step
         Called as ``on_step(t, result)`` after every converged (sub)step, e.g. to write output
         that survives a later failure.
+    controller
+        The step policy; by default a :class:`StepController` whose nominal step is the largest
+        spacing of the targets.
 
     Returns
     -------
@@ -98,49 +271,45 @@ def solve_load_steps(
         Invalid ``steps`` or ``max_cuts``.
     """
     targets = _load_targets(steps)
-    if isinstance(max_cuts, bool) or not isinstance(max_cuts, (int, np.integer)) or max_cuts < 0:
-        raise ValueError(f"max_cuts: expected a non-negative int, got {max_cuts!r}")
-
+    if controller is None:
+        spacing = max(np.diff([0.0, *targets]))
+        controller = StepController(spacing, max_cuts=max_cuts)
     u = solver.u
     u_vector = _compat.petsc_vector(u)
     last_converged = u_vector.copy()
-    # Increments are sums of halvings of the target spacing; snap rounding residue to the target.
-    tolerance = 1.0e-12
+
+    def attempt(start: float, end: float) -> SolveResult:
+        update_load(end)
+        return solver.solve()
+
+    def restore(start: float) -> None:
+        last_converged.copy(u_vector)
+        u.x.scatter_forward()
+        update_load(start)
+
     results: list[SolveResult] = []
     time_reached = 0.0
     for step_index, target in enumerate(targets, start=1):
-        increment = target - time_reached
-        cuts = 0
-        while time_reached < target:
-            time_tried = time_reached + increment
-            if time_tried > target - tolerance:
-                time_tried = target
-            update_load(time_tried)
-            result = solver.solve()
-            if result.converged:
-                time_reached = time_tried
-                u_vector.copy(last_converged)
-                results.append(result)
-                if on_step is not None:
-                    on_step(time_reached, result)
-                cuts = 0
-                increment = 2.0 * increment
-                continue
 
-            last_converged.copy(u_vector)
-            u.x.scatter_forward()
-            update_load(time_reached)
-            if cuts == max_cuts:
-                raise SolverError(
-                    f"load step {step_index} of {len(targets)} failed: Newton stopped with "
-                    f"{result.reason_name} at pseudo-time {time_tried:.6g} after {cuts} "
-                    f"consecutive step cuts; last converged pseudo-time {time_reached:.6g}, "
-                    "to which the solution and the load are restored",
-                    reason_name=result.reason_name,
-                    step_index=step_index,
-                    time_reached=time_reached,
-                    time_tried=time_tried,
+        def failure(start: float, end: float, result: SolveResult, index=step_index) -> str:
+            return (
+                f"load step {index} of {len(targets)} failed {controller.consecutive_cuts} "
+                f"times in a row, the step cut each time, last at pseudo-time {end:.6g}: "
+                f"{result.describe()}; last converged pseudo-time {start:.6g}, to which the "
+                "solution and the load are restored"
+            )
+
+        while time_reached < target:
+            try:
+                size, result = take_step(
+                    controller, time_reached, target - time_reached, attempt, restore, failure
                 )
-            cuts += 1
-            increment = 0.5 * (time_tried - time_reached)
+            except SolverError as error:
+                error.step_index = step_index
+                raise
+            time_reached = target if size == target - time_reached else time_reached + size
+            u_vector.copy(last_converged)
+            results.append(result)
+            if on_step is not None:
+                on_step(time_reached, result)
     return results
