@@ -292,3 +292,31 @@ def constrained_local_dofs(bc) -> np.ndarray:
     """Return the local dof indices (owned and ghost, components unrolled) a DirichletBC fixes."""
     dofs, _ = bc.dof_indices()
     return np.asarray(dofs, dtype=np.int32)
+
+
+def create_mesh_from_cells(comm, points: np.ndarray, cells: np.ndarray, cell_name: str):
+    """Return a mesh of degree-1 cells given on rank 0 (other ranks pass empty arrays).
+
+    ``cell_name`` is "triangle" or "tetrahedron"; ``points`` has shape (n, gdim).
+    """
+    import ufl
+
+    gdim = points.shape[1]
+    if comm.rank != 0:
+        points = np.zeros((0, gdim))
+        cells = np.zeros((0, cells.shape[1]), dtype=np.int64)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    if DOLFINX_VERSION < (0, 7):
+        domain = ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell_name), 1))
+    else:
+        import basix.ufl
+
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell_name, 1, shape=(gdim,)))
+    return dolfinx.mesh.create_mesh(comm, cells, points, domain)
+
+
+def read_xdmf_mesh(comm, path, grid_name: str = "Grid"):
+    """Read a mesh (in parallel) from an XDMF file written by meshio (grid name "Grid")."""
+    with dolfinx.io.XDMFFile(comm, str(path), "r") as xdmf:
+        return xdmf.read_mesh(name=grid_name)

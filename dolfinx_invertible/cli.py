@@ -1,9 +1,14 @@
-"""The command line: ``python -m dolfinx_invertible`` or ``dolfinx-invertible``.
+"""The command line: ``python -m dolfinx_invertible`` or ``dolfinx-invertible`` (also under MPI).
 
 Subcommands:
 
-- ``compile``: compile the DOLFINx cell kernels (2D and 3D) into numba's disk cache, so that the
-  first assembly of a script does not pay for it (``make setup`` runs it);
+- ``list``: every scene with a one-line description and its paper figure;
+- ``run SCENE [options] [PETSc options]``: run a scene (``run SCENE --help`` lists its options
+  with their units and this scene's defaults); writes ``results/SCENE/`` (see
+  :mod:`dolfinx_invertible.scenes.runner`);
+- ``report NAME``: a report (``report --help`` lists them);
+- ``compile``: compile the DOLFINx cell kernels into numba's disk cache, so that the first
+  assembly of a script does not pay for it (``make setup`` runs it);
 - ``bench NAME``: a benchmark (``bench --help`` lists them).
 """
 
@@ -11,11 +16,18 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import sys
 import time
+import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 __all__ = ["main", "parser"]
+
+# Generic scene options: (name, attribute, type, metavar, help with {default}). Options that
+# apply only to dynamic or only to quasi-static scenes are marked.
+_DYNAMIC_ONLY = {"density", "dt", "t_end", "scheme", "damping"}
 
 
 def _compile(arguments: argparse.Namespace) -> int:
@@ -44,15 +56,289 @@ def _bench(arguments: argparse.Namespace) -> int:
     return module.command(arguments)
 
 
+def _list(arguments: argparse.Namespace) -> int:
+    from dolfinx_invertible.scenes import SCENES, get_scene
+
+    scenes = [get_scene(name) for name in SCENES]
+    width = max(len(scene.name) for scene in scenes)
+    for scene in scenes:
+        kind = "dynamic" if scene.dynamic else "quasi-static"
+        print(f"{scene.name:<{width}}  {scene.description} [{scene.figure}; {kind}]")
+    return 0
+
+
+def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
+    """Add the generic options to a scene's parser, with that scene's defaults in the help."""
+    from dolfinx_invertible.scenes.parameters import (
+        EXTENSION_NAMES,
+        MODEL_NAMES,
+        PROJECT_CHOICES,
+        Parameters,
+    )
+
+    defaults = Parameters(**scene.defaults)
+
+    def default(name):
+        return getattr(defaults, name)
+
+    group = subparser.add_argument_group("material")
+    group.add_argument(
+        "--model", choices=list(MODEL_NAMES), help=f"energy model (default: {default('model')})"
+    )
+    group.add_argument(
+        "--extension",
+        choices=list(EXTENSION_NAMES),
+        help="invertible extension (default: c2 for neo-hookean, which is undefined at J <= 0; "
+        "none for the other models, which are defined through inversion)",
+    )
+    group.add_argument("--E", type=float, metavar="PA", help=f"Young's modulus [Pa] "
+                       f"(default: {default('E'):g})")  # fmt: skip
+    group.add_argument("--nu", type=float, metavar="NU", help=f"Poisson ratio, in (-1, 0.5) "
+                       f"(default: {default('nu'):g})")  # fmt: skip
+    group.add_argument("--eps", type=float, metavar="EPS", help="extension threshold, in (0, 1): "
+                       "on J for c2 and ife (default 0.9), on each singular value for c1 "
+                       "(default 0.4)")  # fmt: skip
+    group.add_argument("--k", type=float, metavar="K", help="c1 penalty stiffness [Pa] "
+                       "(default: 20 E)")  # fmt: skip
+    if scene.dynamic:
+        group.add_argument("--density", type=float, metavar="RHO", help=f"mass density "
+                           f"[kg/m^3] (default: {default('density'):g})")  # fmt: skip
+        time_group = subparser.add_argument_group("time stepping")
+        time_group.add_argument("--dt", type=float, metavar="DT", help=f"largest time step [s] "
+                                f"(default: {default('dt'):g})")  # fmt: skip
+        span = time_group.add_mutually_exclusive_group()
+        span.add_argument("--steps", type=int, metavar="N", help="run N steps of dt "
+                          "(t_end = N dt)")  # fmt: skip
+        span.add_argument("--t-end", type=float, metavar="T", dest="t_end", help=f"end time [s] "
+                          f"(default: {default('t_end'):g})")  # fmt: skip
+        time_group.add_argument("--scheme", choices=["backward-euler", "bdf2"],
+                                help=f"time integrator (default: {default('scheme')})")  # fmt: skip
+        time_group.add_argument("--damping", type=float, metavar="ZETA", help="mass-proportional "
+                                "damping as a fraction of critical damping of the lowest mode "
+                                f"(default: {default('damping'):g})")  # fmt: skip
+    else:
+        group = subparser.add_argument_group("load stepping")
+        group.add_argument("--steps", type=int, metavar="N", help=f"load steps (default: "
+                           f"{default('steps')})")  # fmt: skip
+    discretisation = subparser.add_argument_group("discretisation and solver")
+    discretisation.add_argument("--resolution", type=int, metavar="N", help=f"mesh resolution, "
+                                f"cells along the shortest edge (default: "
+                                f"{default('resolution')})")  # fmt: skip
+    discretisation.add_argument("--degree", type=int, choices=[1, 2], help=f"Lagrange degree "
+                                f"(default: {default('degree')})")  # fmt: skip
+    discretisation.add_argument("--size", type=float, metavar="L", help=f"size of the body [m] "
+                                f"(default: {default('size'):g})")  # fmt: skip
+    for name, values in scene.choices.items():
+        discretisation.add_argument(f"--{name}", choices=list(values),
+                                    type=type(values[0]), help=f"{name} (default: "
+                                    f"{default(name)})")  # fmt: skip
+    discretisation.add_argument("--project", choices=list(PROJECT_CHOICES), help="tangent: auto "
+                                "(exact, projected where the exact one gives no descent), yes "
+                                "(SPD-projected), no (exact) (default: "
+                                f"{default('project')})")  # fmt: skip
+    discretisation.add_argument("--inversion-free", type=float, metavar="FRACTION",
+                                dest="inversion_free", help="cap Newton steps so that no point's "
+                                "volume falls below FRACTION of its current value (default: "
+                                f"{default('inversion_free')})")  # fmt: skip
+    output = subparser.add_argument_group("output")
+    output.add_argument("--out", type=Path, metavar="DIR", help=f"output directory (default: "
+                        f"results/{scene.name})")  # fmt: skip
+    output.add_argument("--quiet", action="store_true", help="no progress bar")
+    output.add_argument("--verbose", action="store_true", help="show compiler and solver "
+                        "chatter (FFCx, cffi, numba warnings)")  # fmt: skip
+
+
+def _parameters(scene, arguments: argparse.Namespace):
+    from dolfinx_invertible.scenes.parameters import Parameters
+
+    values = dict(scene.defaults)
+    for name in Parameters.__dataclass_fields__:
+        given = getattr(arguments, name, None)
+        if given is not None:
+            values[name] = given
+    if scene.dynamic and getattr(arguments, "steps", None) is not None:
+        values["t_end"] = arguments.steps * values.get("dt", Parameters.dt)
+        values.pop("steps")
+    if getattr(arguments, "extension", None) is None:
+        values.setdefault(
+            "extension", "c2" if values.get("model", Parameters.model) == "neo-hookean" else "none"
+        )
+    return Parameters(**values)
+
+
+def _petsc_options(extra: Sequence[str]) -> dict[str, str | None]:
+    """Parse ``-name [value]`` pairs left over by argparse into PETSc options."""
+    options: dict[str, str | None] = {}
+    index = 0
+    while index < len(extra):
+        token = extra[index]
+        if not token.startswith("-") or token.startswith("--") or len(token) < 2:
+            raise ValueError(f"unrecognised argument {token!r} (PETSc options start with one '-')")
+        value = None
+        if index + 1 < len(extra) and not extra[index + 1].startswith("-"):
+            value = extra[index + 1]
+            index += 1
+        options[token[1:]] = value
+        index += 1
+    return options
+
+
+def _quiet_libraries(verbose: bool) -> None:
+    """Silence FFCx/cffi build logs and numba warnings unless asked for."""
+    if verbose:
+        return
+    # FFCx installs a root handler (logging.basicConfig) and cffi lowers the root logger's level
+    # while it compiles, which prints every compiler command: filter at the handlers instead.
+    import ffcx  # noqa: F401
+
+    for handler in logging.getLogger().handlers:
+        handler.setLevel(logging.WARNING)
+    for name in ("ffcx", "UFL", "dolfinx", "numba"):
+        logging.getLogger(name).setLevel(logging.WARNING)
+    try:
+        from numba.core.errors import NumbaWarning
+
+        warnings.simplefilter("ignore", NumbaWarning)
+    except ImportError:
+        pass
+    warnings.simplefilter("ignore", DeprecationWarning)
+
+
+def _run(arguments: argparse.Namespace) -> int:
+    from mpi4py import MPI
+
+    from dolfinx_invertible.scenes import get_scene
+    from dolfinx_invertible.scenes.runner import RunInterrupted
+
+    comm = MPI.COMM_WORLD
+    _quiet_libraries(arguments.verbose)
+    scene = get_scene(arguments.scene)
+    try:
+        parameters = _parameters(scene, arguments)
+        petsc = _petsc_options(arguments.petsc)
+        _check_combination(parameters, petsc, comm)
+        output = arguments.out or Path("results") / scene.name
+        from dolfinx_invertible.scenes.runner import run_scene
+
+        summary = run_scene(
+            scene,
+            parameters,
+            output=output,
+            quiet=arguments.quiet or comm.rank != 0,
+            petsc_options=_solver_options(petsc),
+            comm=comm,
+        )
+    except ValueError as error:
+        if arguments.verbose:
+            raise
+        if comm.rank == 0:
+            print(f"error: {error}", file=sys.stderr)
+        return 2
+    except RunInterrupted as interrupt:
+        if comm.rank == 0:
+            print(f"{scene.name}: {interrupt}; summary written to {output / 'summary.json'}",
+                  file=sys.stderr)  # fmt: skip
+        return 130
+    if comm.rank == 0:
+        _print_summary(summary, output)
+    return 0 if summary["completed"] else 1
+
+
+_PREFIX = "dolfinx_invertible_"
+
+
+def _solver_options(petsc: dict[str, str | None]) -> dict[str, str | None]:
+    """Options for the solver (prefix removed); others go to PETSc's database unchanged."""
+    from petsc4py import PETSc
+
+    ours = {}
+    for name, value in petsc.items():
+        if name.startswith(_PREFIX):
+            ours[name[len(_PREFIX) :]] = value
+        else:
+            PETSc.Options().setValue(name, value if value is not None else "")
+    return ours
+
+
+def _check_combination(parameters, petsc: dict[str, str | None], comm) -> None:
+    line_search = petsc.get(f"{_PREFIX}snes_linesearch_type")
+    if parameters.extension == "ife" and line_search not in (None, "l2", "basic"):
+        raise ValueError(
+            f"the ife extension has no energy, so the energy line search {line_search!r} cannot "
+            "work with it: leave the line search to the solver (l2 on the residual) or use c1/c2"
+        )
+    if parameters.extension != "none" and parameters.model != "neo-hookean" and comm.rank == 0:
+        print(
+            f"note: {parameters.model} is defined through inversion without an extension; "
+            f"{parameters.extension} still replaces its energy below the threshold",
+            file=sys.stderr,
+        )
+
+
+def _print_summary(summary: dict, output: Path) -> None:
+    keys = ("outcome", "steps", "final_inverted", "max_inverted", "final_min_J")
+    shown = ", ".join(f"{key} {summary.get(key)}" for key in keys if key in summary)
+    extra = [key for key in ("rest_distance", "tip_displacement") if key in summary]
+    for key in extra:
+        shown += f", {key} {summary[key]:.6g}"
+    shown += f", Newton {summary['newton_iterations']['total']}, {summary['wall_time_s']:.1f} s"
+    print(f"{summary['scene']}: {shown}")
+    if summary.get("reason"):
+        print(f"{summary['scene']}: {summary['reason']}")
+    print(f"wrote {output}/ ({summary['scene']}.xdmf, {summary['scene']}.jsonl, summary.json)")
+
+
+def _report(arguments: argparse.Namespace) -> int:
+    module = importlib.import_module(f"dolfinx_invertible.reports.{arguments.report_module}")
+    _quiet_libraries(getattr(arguments, "verbose", False))
+    return module.command(arguments)
+
+
+#: Reports: command name -> (module in dolfinx_invertible.reports, one-line description).
+REPORTS: dict[str, tuple[str, str]] = {}
+
+
 def parser() -> argparse.ArgumentParser:
     """Return the argument parser of the whole command line."""
     from dolfinx_invertible.bench import BENCHMARKS
+    from dolfinx_invertible.scenes import SCENES, get_scene
 
     top = argparse.ArgumentParser(
         prog="dolfinx-invertible",
         description="Invertible hyperelasticity for DOLFINx (Stomakhin et al. 2012).",
     )
     commands = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    commands.add_parser(
+        "list", help="list the scenes", description="List every scene with its paper figure."
+    ).set_defaults(handler=_list)
+
+    run_parser = commands.add_parser(
+        "run",
+        help="run a scene",
+        description="Run a scene; PETSc options (e.g. -dolfinx_invertible_snes_monitor) may "
+        "follow the scene's options.",
+    )
+    scenes = run_parser.add_subparsers(dest="scene", required=True, metavar="SCENE")
+    for name in SCENES:
+        scene = get_scene(name)
+        scene_parser = scenes.add_parser(
+            name,
+            help=f"{scene.description} [{scene.figure}]",
+            description=f"{scene.description} [{scene.figure}]. Options not given take this "
+            "scene's defaults, shown below.",
+        )
+        _scene_options(scene_parser, scene)
+        scene_parser.set_defaults(handler=_run)
+
+    report_parser = commands.add_parser("report", help="write a report", description="Reports.")
+    reports = report_parser.add_subparsers(dest="report", required=True, metavar="NAME")
+    for name, (module_name, description) in REPORTS.items():
+        subparser = reports.add_parser(name, help=description, description=description)
+        importlib.import_module(f"dolfinx_invertible.reports.{module_name}").add_arguments(
+            subparser
+        )
+        subparser.set_defaults(handler=_report, report_module=module_name)
 
     compile_parser = commands.add_parser(
         "compile",
@@ -73,7 +359,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the process exit code.
+    """Run the command line; return the process exit code.
 
     Parameters
     ----------
@@ -81,7 +367,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         Arguments after the program name; defaults to ``sys.argv[1:]``.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
-    arguments = parser().parse_args(argv)
+    top = parser()
+    arguments, extra = top.parse_known_args(argv)
+    if arguments.command == "run":
+        arguments.petsc = extra
+    elif extra:
+        top.error(f"unrecognized arguments: {' '.join(extra)}")
     if arguments.command == "bench":
         arguments.bench_argv = argv[argv.index("bench") + 1 :]
     return arguments.handler(arguments)

@@ -130,8 +130,14 @@ class ResultWriter:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self.comm.barrier()
-        with _compat.xdmf_file(self.comm, self.path, "w") as xdmf:
-            xdmf.write_mesh(mesh)
+        try:
+            with _compat.xdmf_file(self.comm, self.path, "w") as xdmf:
+                xdmf.write_mesh(mesh)
+        except RuntimeError as error:
+            raise ValueError(
+                f"cannot create {self.path.with_suffix('.h5')}: {error} (is another process "
+                "writing it or holding it open? HDF5 locks the files it writes)"
+            ) from None
         self._log = StepLog(self.log_path, self.comm)
 
     def __enter__(self) -> ResultWriter:
@@ -297,7 +303,16 @@ def _merge_new_collections(path: Path) -> None:
         for attribute in grid.findall("Attribute"):
             step.append(attribute)
 
+    # XDMF reads a data item without a precision as single precision (ParaView does); ours
+    # are doubles.
+    for item in domain.iter("DataItem"):
+        if "NumberType" not in item.attrib:
+            item.set("NumberType", "Float")
+            item.set("Precision", "8")
     ElementTree.indent(tree, space="  ")
+    # The prefix map is global: another library (meshio) may have bound "xi" to the other
+    # XInclude URI, which would make DOLFINx's next "xi:include" an unbound prefix.
+    ElementTree.register_namespace("xi", _XINCLUDE_NAMESPACE)
     temporary = path.with_name(f".{path.name}.tmp")
     with open(temporary, "w", encoding="utf-8") as stream:
         stream.write(_XML_HEADER)

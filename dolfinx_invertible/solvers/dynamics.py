@@ -78,7 +78,7 @@ class ImplicitDynamics:
         (cells with det F ≤ 0 at a point) is cut and retried as if it had failed.
     **problem_options
         Passed to :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`
-        (``quadrature_degree``, ``project`` — default ``True`` here —, ``petsc_options``,
+        (``quadrature_degree``, ``project`` (default ``"auto"``), ``petsc_options``,
         ``options_prefix``, ``linear_solver``, ``pc``, ``inversion_free``, ``step_limits``,
         ``terms``, ...).
 
@@ -162,9 +162,6 @@ class ImplicitDynamics:
             energy = energy + external_energy
         if boundary_update is not None:
             boundary_update(self.time)
-        # Dynamics scenes are where elements get crushed and inverted, and the mass term keeps
-        # the projected system well conditioned: project unless told otherwise.
-        problem_options.setdefault("project", True)
         self.problem = HyperelasticProblem(
             u, material, bcs, external_energy=energy, **problem_options
         )

@@ -51,6 +51,12 @@ class _SolveState:
     failure: tuple[int, str, str] | None = None  # (SNES reason, stage, detail)
     converged_detail: str | None = None
     projected_iterations: int = 0
+    # With a tangent switch: the next tangent is the exact one only in the local phase, after a
+    # full step that at least halved the residual; the projected one otherwise.
+    exact_next: bool = True
+    projected_now: bool = False
+    full_step: bool = True
+    previous_norm: float = math.inf
 
 
 class EnergyMinimizer:
@@ -172,6 +178,10 @@ class EnergyMinimizer:
         )
         options.update(solver_options)
         self.linear_solver = "direct" if solver_options["ksp_type"] == "preonly" else "iterative"
+        self._inertia_available = (
+            solver_options.get("pc_type") == "cholesky"
+            and solver_options.get("pc_factor_mat_solver_type") == "mumps"
+        )
         given = {name.lstrip("-"): value for name, value in (petsc_options or {}).items()}
         options.update(given)
         self._options = options
@@ -210,7 +220,15 @@ class EnergyMinimizer:
 
     # -- tolerances ---------------------------------------------------------------------------
     def _jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
-        self.problem.J(snes, x, A, P)
+        projected = self.tangent_switch is not None and not self._state.exact_next
+        self._state.projected_now = projected
+        if projected:
+            self.tangent_switch(True)
+        try:
+            self.problem.J(snes, x, A, P)
+        finally:
+            if projected:
+                self.tangent_switch(False)
         self._record_stiffness(A)
 
     def _record_stiffness(self, matrix: PETSc.Mat) -> None:
@@ -264,6 +282,9 @@ class EnergyMinimizer:
         if iteration == 0:
             state.initial_norm = fnorm
             state.tolerance = self.absolute_tolerance()
+        else:
+            state.exact_next = state.full_step and fnorm < 0.5 * state.previous_norm
+        state.previous_norm = fnorm
         rtol, _, _, max_it = snes.getTolerances()
         if fnorm <= state.tolerance:
             return _REASONS.CONVERGED_FNORM_ABS
@@ -283,12 +304,25 @@ class EnergyMinimizer:
         self._state.failure = (reason, stage, detail)
         y.set(0.0)  # SNES then stays at x, and the convergence test reports the failure
 
-    def _direction_ok(self, ksp: PETSc.KSP, y: PETSc.Vec) -> tuple[bool, str]:
+    def _indefinite(self, ksp: PETSc.KSP) -> bool:
+        """Whether the factorised tangent has negative pivots (MUMPS LDLᵀ reports its inertia).
+
+        A descent direction of an indefinite tangent can still lead far away; where the
+        projected tangent is at hand, it is the better direction then.
+        """
+        if not self._inertia_available:
+            return False
+        negative, _, _ = ksp.getPC().getFactorMatrix().getInertia()
+        return negative > 0
+
+    def _direction_ok(self, ksp: PETSc.KSP, y: PETSc.Vec, check_inertia: bool) -> tuple[bool, str]:
         reason = ksp.getConvergedReason()
         if reason < 0:
             return False, f"the linear solve failed ({ksp_reason_name(reason)})"
         if not self.problem.has_energy:
             return True, ""
+        if check_inertia and self._indefinite(ksp):
+            return False, "the exact tangent is indefinite"
         slope = self._residual.dot(y)
         if not (math.isfinite(slope) and slope > 0.0):
             return False, "the Newton direction is not a descent direction"
@@ -297,10 +331,14 @@ class EnergyMinimizer:
     def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         # SNES moves to x − λ·y after this: λ = 1 with our line search, PETSc's choice for l2.
         ksp = self.snes.getKSP()
-        ok, why = self._direction_ok(ksp, y)
-        if not ok and self.tangent_switch is not None:
+        state = self._state
+        exact = self.tangent_switch is not None and not state.projected_now
+        ok, why = self._direction_ok(ksp, y, check_inertia=exact)
+        if state.projected_now:
+            state.projected_iterations += 1
+        elif not ok and self.tangent_switch is not None:
             self._projected_direction(x, y, ksp)
-            ok, why = self._direction_ok(ksp, y)
+            ok, why = self._direction_ok(ksp, y, check_inertia=False)
         if not ok:
             stage = "linear solve" if ksp.getConvergedReason() < 0 else "line search"
             reason = (
@@ -315,8 +353,9 @@ class EnergyMinimizer:
             largest = min(largest, limit.largest_step(y, sign=-1.0))
         if largest < 1.0:
             y.scale(largest)
+        state.full_step = largest == 1.0
         if self.problem.has_energy:
-            self._backtrack(x, y)
+            state.full_step = self._backtrack(x, y) and state.full_step
 
     def _projected_direction(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
         self.tangent_switch(True)
@@ -328,6 +367,7 @@ class EnergyMinimizer:
         finally:
             self.tangent_switch(False)
         self._state.projected_iterations += 1
+        self._state.projected_now = True
 
     def _energy_at(self, vector: PETSc.Vec) -> tuple[float, np.ndarray]:
         self.problem.update_solution(vector)
@@ -335,7 +375,8 @@ class EnergyMinimizer:
         total = float(np.sum(terms))
         return (total if math.isfinite(total) else math.inf), terms
 
-    def _backtrack(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+    def _backtrack(self, x: PETSc.Vec, y: PETSc.Vec) -> bool:
+        """Shorten ``y`` until the energy test passes; return whether the full step did."""
         problem = self.problem
         start, terms = self._energy_at(x)
         rounding = self._energy_rounding(terms)
@@ -346,11 +387,11 @@ class EnergyMinimizer:
             self._trial.waxpy(-1.0, y, x)
             energy, _ = self._energy_at(self._trial)
             if energy <= start - self.sufficient_decrease * decrease:
-                return
+                return step == 1.0
             if abs(energy - start) <= rounding:
                 problem.F(None, self._trial, self._work)
                 if self._work.norm() < residual_norm:
-                    return
+                    return step == 1.0
             y.scale(0.5)
             step *= 0.5
         y.scale(1.0 / step)
@@ -360,13 +401,14 @@ class EnergyMinimizer:
                 "reduces the residual: converged as far as floating point resolves"
             )
             y.set(0.0)
-            return
+            return False
         self._fail(
             y,
             _REASONS.DIVERGED_LINE_SEARCH,
             "line search",
             f"no step down to {step:.1e} of the Newton step decreases the energy",
         )
+        return False
 
     # -- solving ------------------------------------------------------------------------------
     def newton_direction(self, direction: PETSc.Vec) -> int:

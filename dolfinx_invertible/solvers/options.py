@@ -94,7 +94,12 @@ def linear_solver_options(
         # Cholesky (LDLᵀ in MUMPS): the tangents are symmetric but the exact one may be
         # indefinite. SuperLU_dist and PETSc's own have no symmetric indefinite solver: LU.
         factor = "cholesky" if package == "mumps" else "lu"
-        return {"ksp_type": "preonly", "pc_type": factor, "pc_factor_mat_solver_type": package}
+        options = {"ksp_type": "preonly", "pc_type": factor, "pc_factor_mat_solver_type": package}
+        if package == "mumps":
+            # Null-pivot detection, which PETSc needs to report the factor's inertia (the
+            # minimiser reads it to tell an indefinite exact tangent).
+            options["mat_mumps_icntl_24"] = 1
+        return options
     options: dict[str, Any] = {"ksp_type": "cg", "ksp_rtol": 1.0e-10, "pc_type": pc}
     if pc == "hypre":
         options["pc_hypre_type"] = "boomeramg"

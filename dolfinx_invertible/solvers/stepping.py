@@ -58,6 +58,10 @@ class StepController:
         Factor applied to the step after an easy one (≥ 1), up to ``nominal``.
     easy_iterations
         A converged step with at most this many Newton iterations counts as easy.
+    minimum
+        The smallest step worth trying; a step cut below it gives up too. Default
+        ``nominal · cut ** (2 · max_cuts)``: alternating successes and failures (a solution that
+        Newton cannot reach, such as an energy minimum on a kink) cannot creep on for ever.
 
     Attributes
     ----------
@@ -77,6 +81,7 @@ class StepController:
         cut: float = 0.5,
         growth: float = 2.0,
         easy_iterations: int = 10,
+        minimum: float | None = None,
     ):
         if not (math.isfinite(nominal) and nominal > 0.0):
             raise ValueError(f"the nominal step must be a finite number > 0, got {nominal!r}")
@@ -95,6 +100,9 @@ class StepController:
         self.cut = float(cut)
         self.growth = float(growth)
         self.easy_iterations = int(easy_iterations)
+        self.minimum = (
+            self.nominal * self.cut ** (2 * self.max_cuts) if minimum is None else float(minimum)
+        )
         self.step = self.nominal
         self.accepted: list[float] = []
         self.cuts = 0
@@ -118,7 +126,7 @@ class StepController:
         self.cuts += 1
         self._consecutive_cuts += 1
         self.step = size * self.cut
-        return self._consecutive_cuts <= self.max_cuts
+        return self._consecutive_cuts <= self.max_cuts and self.step >= self.minimum
 
     @property
     def consecutive_cuts(self) -> int:
@@ -180,8 +188,11 @@ def take_step(
         if rejection is not None:
             result = _rejected(result, rejection)
         if not controller.failed(size):
+            message = failure(start, start + size, result)
+            if controller.step < controller.minimum:
+                message += f" (the next cut would take the step below {controller.minimum:.3g})"
             raise SolverError(
-                failure(start, start + size, result),
+                message,
                 reason_name=result.reason_name,
                 stage=result.stage,
                 time_reached=start,

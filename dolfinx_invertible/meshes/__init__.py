@@ -1,0 +1,10 @@
+"""Meshes made by gmsh scripts on first use, cached on disk and read in parallel.
+
+No mesh data is downloaded or stored in the repository: each module here builds its geometry
+with gmsh (on rank 0), writes it once to a cache folder (``DOLFINX_INVERTIBLE_CACHE`` or
+``~/.cache/dolfinx_invertible``), and every later run on any number of ranks reads that file.
+"""
+
+from dolfinx_invertible.meshes.cache import cache_directory, cached_mesh
+
+__all__ = ["cache_directory", "cached_mesh"]

@@ -1,0 +1,420 @@
+"""Run a scene: build it from its declaration, step it, write its output and its summary.
+
+The output of a run in its directory (``results/SCENE/`` by default):
+
+- ``SCENE.xdmf`` + ``SCENE.h5``: the displacement and the per-cell diagnostics of every completed
+  step, readable while the run goes on and after it stops (also after SIGKILL, up to the last
+  completed step);
+- ``SCENE.jsonl``: one line per completed step (time, energy, iterations, inverted cells, ...);
+- ``summary.json``: every parameter used and how the run went, written at the end, also after a
+  failure or an interrupt (``completed`` false and the reason given); the previous run's summary
+  is removed when a run starts, so a summary never belongs to another run;
+- scene-specific extras (e.g. ``trajectories.npy``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import signal
+from collections.abc import Callable
+from pathlib import Path
+from time import perf_counter
+from typing import Any
+
+from mpi4py import MPI
+
+import dolfinx
+import numpy as np
+
+from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
+from dolfinx_invertible.fem.spaces import vector_function_space
+from dolfinx_invertible.io.xdmf import ResultWriter
+from dolfinx_invertible.scenes.outcome import relaxation_outcome, rest_distance
+from dolfinx_invertible.scenes.parameters import PROJECT_CHOICES, Parameters, make_material
+from dolfinx_invertible.scenes.scene import Scene
+from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
+from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem
+from dolfinx_invertible.solvers.results import SolverError, SolveResult
+from dolfinx_invertible.solvers.stepping import StepController, solve_load_steps
+
+__all__ = ["Run", "RunInterrupted", "run_scene", "check_output_directory"]
+
+
+class RunInterrupted(Exception):  # noqa: N818 (an interruption, not an error)
+    """Raised inside a run by SIGINT or SIGTERM, so that the summary still gets written."""
+
+
+@dataclasses.dataclass
+class Run:
+    """The state of a scene run, as the scene's hooks see it after every step.
+
+    Attributes
+    ----------
+    scene, parameters, material, mesh, u
+        What runs.
+    time
+        Time (dynamic) or pseudo-time (quasi-static) of the last completed step.
+    result
+        The last step's :class:`~dolfinx_invertible.SolveResult` (None at t = 0).
+    diagnostics
+        Global counts of the last completed step (:func:`~dolfinx_invertible.summary`).
+    dynamics, problem
+        The stepping object (one of them is None).
+    controller
+        The step controller (of the dynamics, or of the load steps).
+    """
+
+    scene: Scene
+    parameters: Parameters
+    material: Any
+    mesh: Any
+    u: Any
+    time: float = 0.0
+    result: SolveResult | None = None
+    diagnostics: dict[str, Any] = dataclasses.field(default_factory=dict)
+    dynamics: ImplicitDynamics | None = None
+    problem: HyperelasticProblem | None = None
+    controller: StepController | None = None
+    steps: int = 0
+    newton_total: int = 0
+    newton_max: int = 0
+    linear_total: int = 0
+    max_inverted: int = 0
+    min_J: float = math.inf  # noqa: N815 (the notation: J = det F)
+    nan_encountered: bool = False
+    svd_points: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    started: float = dataclasses.field(default_factory=perf_counter)
+
+    @property
+    def kinetic_energy(self) -> float | None:
+        """Kinetic energy of the current state (dynamic scenes, collective)."""
+        return None if self.dynamics is None else self.dynamics.kinetic_energy
+
+
+def check_output_directory(path: Path, comm) -> None:
+    """Create ``path`` and make sure files can be written there; clear error otherwise."""
+    error = None
+    if comm.rank == 0:
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            probe = path / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exception:
+            error = (
+                f"cannot write to the output directory {path}: {exception.strerror or exception}"
+            )
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise ValueError(error)
+
+
+def _damping_coefficient(scene: Scene, parameters: Parameters) -> float:
+    """Return the mass-proportional damping c [1/s] for the requested fraction ζ.
+
+    ζ is relative to critical damping of the lowest elastic mode, ω ≈ π c / L: c = 2 ζ ω.
+    """
+    if parameters.damping == 0.0:
+        return 0.0
+    lowest = math.pi * parameters.wave_speed / parameters.size
+    return 2.0 * parameters.damping * lowest
+
+
+def _write_json(path: Path, data: dict) -> None:
+    temporary = path.with_name(f".{path.name}.tmp")
+    temporary.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+    os.replace(temporary, path)
+
+
+def _finite(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+class _Signals:
+    """Turn SIGINT and SIGTERM into :class:`RunInterrupted` while a run is stepping."""
+
+    def __enter__(self):
+        self._previous = {}
+        for number in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._previous[number] = signal.signal(number, self._raise)
+            except ValueError:  # not the main thread
+                pass
+        return self
+
+    @staticmethod
+    def _raise(number, frame):
+        raise RunInterrupted(f"interrupted by {signal.Signals(number).name}")
+
+    def __exit__(self, *exception):
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+
+
+class _Progress:
+    """A tqdm progress bar on rank 0 (none when quiet)."""
+
+    def __init__(self, enabled: bool, total: float, unit: str):
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(
+                total=total, unit=unit, dynamic_ncols=True, leave=True,
+                bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} {unit} [{elapsed}<{remaining}] "
+                "{postfix}",
+            )  # fmt: skip
+
+    def update(self, time_now: float, **postfix) -> None:
+        if self.bar is not None:
+            self.bar.update(time_now - self.bar.n)
+            self.bar.set_postfix(postfix, refresh=False)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run_scene(
+    scene_class: type[Scene],
+    parameters: Parameters,
+    *,
+    output: Path | None = None,
+    quiet: bool = True,
+    petsc_options: dict[str, Any] | None = None,
+    comm=MPI.COMM_WORLD,
+    on_step: Callable[[Run], None] | None = None,
+) -> dict[str, Any]:
+    """Run a scene; return its summary (written to ``output/summary.json`` too).
+
+    Parameters
+    ----------
+    scene_class
+        The scene.
+    parameters
+        Every parameter, the scene's defaults already filled in; validated here.
+    output
+        Directory of the XDMF, the step log and the summary; ``None`` writes nothing (used by
+        the reports, which only read the summaries).
+    quiet
+        No progress bar.
+    petsc_options
+        Solver options (without prefix), e.g. from the command line.
+    comm
+        The communicator.
+    on_step
+        Called with the :class:`Run` after every completed step.
+
+    Raises
+    ------
+    ValueError
+        Invalid parameters or output directory: before anything is computed.
+    """
+    parameters.validate()
+    if output is not None:
+        check_output_directory(output, comm)
+        if comm.rank == 0:
+            (output / "summary.json").unlink(missing_ok=True)
+    scene = scene_class(parameters, comm)
+    material = make_material(parameters)
+    mesh = scene.mesh = scene.create_mesh()
+    space = vector_function_space(mesh, parameters.degree)
+    u = dolfinx.fem.Function(space, name="displacement")
+    initial = scene.initial_displacement()
+    if initial is not None:
+        u.interpolate(initial)
+        u.x.scatter_forward()
+    bcs, boundary_update = scene.boundary_conditions(space)
+    options = dict(scene.problem_options())
+    options.setdefault("project", PROJECT_CHOICES[parameters.project])
+    options.setdefault("petsc_options", petsc_options)
+    if parameters.inversion_free is not None:
+        options.setdefault("inversion_free", parameters.inversion_free)
+    run = Run(scene=scene, parameters=parameters, material=material, mesh=mesh, u=u)
+    if scene.dynamic:
+        velocity = None
+        initial_velocity = scene.initial_velocity()
+        if initial_velocity is not None:
+            velocity = dolfinx.fem.Function(space)
+            velocity.interpolate(initial_velocity)
+            velocity.x.scatter_forward()
+        run.dynamics = ImplicitDynamics(
+            u,
+            material,
+            density=parameters.density,
+            dt=parameters.dt,
+            bcs=bcs,
+            velocity=velocity,
+            gravity=scene.gravity(),
+            external_energy=scene.external_energy(u),
+            boundary_update=boundary_update,
+            scheme=parameters.scheme,
+            damping=_damping_coefficient(scene, parameters),
+            **options,
+        )
+        run.controller = run.dynamics.controller
+    else:
+        run.problem = HyperelasticProblem(
+            u, material, bcs, external_energy=scene.external_energy(u), **options
+        )
+        run.controller = StepController(1.0 / parameters.steps)
+    writer = ResultWriter(output / f"{scene.name}.xdmf", mesh) if output is not None else None
+    dofs = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
+    total = parameters.t_end if scene.dynamic else 1.0
+    progress = _Progress(not quiet and comm.rank == 0, total, "s" if scene.dynamic else "load")
+    failure: dict[str, Any] = {}
+    completed = False
+    try:
+        with _Signals():
+            _record(run, writer, None)
+            scene.record(run)
+
+            def step_done(t: float, result: SolveResult) -> None:
+                run.time = t
+                run.result = result
+                _record(run, writer, result)
+                scene.record(run)
+                progress.update(
+                    t, newton=result.newton_iterations, inverted=run.diagnostics["inverted_cells"]
+                )
+                if on_step is not None:
+                    on_step(run)
+
+            if run.dynamics is not None:
+                run.dynamics.advance(parameters.t_end, on_step=step_done)
+            else:
+                solve_load_steps(
+                    run.problem,
+                    scene.set_load,
+                    parameters.steps,
+                    on_step=step_done,
+                    controller=run.controller,
+                )
+            completed = True
+    except SolverError as error:
+        failure = {
+            "reason": str(error),
+            "failed_stage": error.stage,
+            "failed_time": error.time_tried,
+        }
+        run.nan_encountered = run.nan_encountered or error.stage == "NaN"
+    except RunInterrupted as interrupt:
+        progress.close()
+        if writer is not None:
+            writer.close()
+        # Ranks may be interrupted at different points: no collective operation from here on.
+        summary_data = _summary(run, dofs, completed=False, converged=True, final=None)
+        summary_data.update(reason=str(interrupt), interrupted=True)
+        if output is not None and comm.rank == 0:
+            _write_json(output / "summary.json", summary_data)
+        raise
+    finally:
+        progress.close()
+        if writer is not None:
+            writer.close()
+    final = summary(cell_diagnostics(u, material), comm)
+    summary_data = _summary(run, dofs, completed=completed, converged=not failure, final=final)
+    summary_data.update(failure)
+    if scene.relaxation:
+        distance = rest_distance(u)
+        outcome = relaxation_outcome(
+            completed, failure.get("failed_stage"), final["inverted_cells"], distance
+        )
+        summary_data.update(
+            rest_distance=distance,
+            recovered=outcome == "recovered",
+            outcome=outcome,
+            kinetic_energy_final=run.kinetic_energy,
+        )
+    else:
+        outcome = (
+            "completed"
+            if completed
+            else ("nan" if failure.get("failed_stage") == "NaN" else "failed")
+        )
+        summary_data["outcome"] = outcome
+    summary_data.update(scene.quantities(run))
+    if output is not None and comm.rank == 0:
+        for name, data in scene.files(run).items():
+            np.save(output / name, np.asarray(data))
+        _write_json(output / "summary.json", _json_ready(summary_data))
+    return _json_ready(summary_data)
+
+
+def _record(run: Run, writer: ResultWriter | None, result: SolveResult | None) -> None:
+    """Diagnostics of the current state into the run's statistics, the XDMF and the log."""
+    diagnostics = cell_diagnostics(run.u, run.material)
+    record = summary(diagnostics, run.mesh.comm)
+    run.diagnostics = record
+    run.max_inverted = max(run.max_inverted, record["inverted_cells"])
+    run.min_J = min(run.min_J, record["min_J"])
+    if result is not None:
+        run.steps += 1
+        run.newton_total += result.newton_iterations
+        run.newton_max = max(run.newton_max, result.newton_iterations)
+        run.linear_total += result.linear_iterations
+        for kind, share in result.svd_share.items():
+            if share is not None:
+                run.svd_points.setdefault(kind, []).append(share)
+        if result.energy is not None and not math.isfinite(result.energy):
+            run.nan_encountered = True
+        record.update(
+            energy=result.energy,
+            newton_iterations=result.newton_iterations,
+            linear_iterations=result.linear_iterations,
+            tangent=result.tangent,
+            svd_share=result.svd_share,
+        )
+        record["step_size"] = run.controller.accepted[-1]
+    if run.dynamics is not None:
+        record["kinetic_energy"] = run.dynamics.kinetic_energy
+    record["wall_time"] = perf_counter() - run.started
+    if writer is not None:
+        # A strictly increasing time for the initial state of a quasi-static run too.
+        writer.write(run.time, run.u, diagnostics, record)
+
+
+def _summary(
+    run: Run, dofs: int, *, completed: bool, converged: bool, final: dict | None
+) -> dict[str, Any]:
+    parameters = run.parameters
+    stepping = run.controller.statistics() if run.controller is not None else {}
+    last = final if final is not None else run.diagnostics
+    svd_share = {kind: float(np.mean(values)) for kind, values in run.svd_points.items() if values}
+    return {
+        "scene": run.scene.name,
+        "model": parameters.model,
+        "extension": parameters.extension,
+        "parameters": parameters.as_dict(),
+        "ranks": run.mesh.comm.size,
+        "dofs": dofs,
+        "steps": run.steps,
+        "time": run.time,
+        "completed": completed,
+        "converged": converged,
+        "nan_encountered": run.nan_encountered,
+        "final_min_J": last.get("min_J"),
+        "final_inverted": last.get("inverted_cells"),
+        "max_inverted": max(run.max_inverted, last.get("inverted_cells", 0) or 0),
+        "min_J_reached": run.min_J,
+        "newton_iterations": {"total": run.newton_total, "max": run.newton_max},
+        "linear_iterations": run.linear_total,
+        "wall_time_s": perf_counter() - run.started,
+        "svd_share": svd_share,
+        "stepping": stepping,
+    }
+
+
+def _json_ready(value):
+    if isinstance(value, dict):
+        return {str(key): _json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(item) for item in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    return _finite(value)

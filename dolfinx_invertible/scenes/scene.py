@@ -1,0 +1,109 @@
+"""What a scene declares: its geometry, its defaults, its loads; :mod:`.runner` does the rest.
+
+A scene is a subclass of :class:`Scene` in a module of its own under
+:mod:`dolfinx_invertible.scenes`, written with the public API only, so that each doubles as an
+example. It sets the class attributes (name, description, paper figure, defaults, whether it is
+dynamic) and overrides the hooks it needs; everything a scene does not declare it does not get
+(no mass in a quasi-static scene, no gravity unless asked for, no energy kernel unless a line
+search or a report reads it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from dolfinx_invertible.scenes.parameters import Parameters
+
+__all__ = ["Scene"]
+
+
+class Scene:
+    """Base class of the scenes; one instance per run.
+
+    Class attributes
+    ----------------
+    name
+        Command-line name, e.g. ``"collapse"``.
+    description
+        One line for ``dolfinx-invertible list``.
+    figure
+        The paper figure it reproduces, or what benchmark it is.
+    dynamic
+        Implicit dynamics (``True``) or quasi-static load stepping (``False``).
+    relaxation
+        A body released from a deformed state: the summary gets ``rest_distance``,
+        ``recovered`` and the relaxation outcome.
+    defaults
+        Values of :class:`~dolfinx_invertible.scenes.parameters.Parameters` this scene changes.
+    choices
+        Allowed values of the scene-specific parameters (``mesh``, ``dimension``); a parameter
+        not listed here does not apply to the scene.
+
+    Parameters
+    ----------
+    parameters
+        The values of this run (defaults filled in).
+    comm
+        The MPI communicator.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    figure: ClassVar[str] = ""
+    dynamic: ClassVar[bool] = True
+    relaxation: ClassVar[bool] = False
+    defaults: ClassVar[dict[str, Any]] = {}
+    choices: ClassVar[dict[str, Sequence[Any]]] = {}
+
+    def __init__(self, parameters: Parameters, comm):
+        self.parameters = parameters
+        self.comm = comm
+        #: The mesh :meth:`create_mesh` made (set by the runner before the other hooks).
+        self.mesh = None
+
+    # -- what every scene provides ----------------------------------------------------------
+    def create_mesh(self):
+        """Return the reference mesh."""
+        raise NotImplementedError
+
+    # -- optional hooks ---------------------------------------------------------------------
+    def initial_displacement(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """Return u₀(x) for ``Function.interpolate`` (x has shape (3, n)), or None for 0."""
+        return None
+
+    def initial_velocity(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """Return v₀(x) for ``Function.interpolate``, or None for rest (dynamic scenes)."""
+        return None
+
+    def boundary_conditions(self, space) -> tuple[list, Callable[[float], None] | None]:
+        """Return the Dirichlet conditions and a function setting their values at time t."""
+        return [], None
+
+    def external_energy(self, u):
+        """Return a UFL potential in ``u`` (tractions, springs) or None."""
+        return None
+
+    def set_load(self, t: float) -> None:
+        """Set loads for pseudo-time t in [0, 1] (quasi-static scenes)."""
+
+    def gravity(self) -> Sequence[float] | None:
+        """Return the body acceleration g, or None (dynamic scenes)."""
+        return None
+
+    def problem_options(self) -> dict[str, Any]:
+        """Return further options of the problem (e.g. ``quadrature_degree``)."""
+        return {}
+
+    def record(self, run) -> None:
+        """Look at the :class:`~.runner.Run` after every accepted step (e.g. to sample it)."""
+
+    def quantities(self, run) -> dict[str, Any]:
+        """Return the scene's own summary values at the end (collective)."""
+        return {}
+
+    def files(self, run) -> dict[str, Any]:
+        """Return extra data to save next to the output, name -> array (rank 0 writes them)."""
+        return {}
