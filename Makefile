@@ -7,7 +7,7 @@ PYTHON := $(VENV)/bin/python
 APT_PACKAGES := python3-dolfinx-real python3-numba python3-gmsh python3-meshio python3-pytest \
 	python3-matplotlib python3-tqdm python3-scipy python3-h5py python3-venv python3-pip \
 	python3-setuptools \
-	openmpi-bin
+	openmpi-bin paraview python3-paraview xvfb
 MPIEXEC := mpirun
 PYTEST_MPI := -q -p no:cacheprovider
 
@@ -74,6 +74,17 @@ test-compat: setup
 demo: setup
 	$(PYTHON) demos/constitutive.py
 	$(MPIEXEC) -n 2 $(PYTHON) demos/collapse.py
+
+# One picture per run (each .xdmf file in the directories of GALLERY_RUNS) in
+# docs/gallery/<directory>/<run>.png, rendered by ParaView (docs/paraview.md). Runs the collapse
+# demo first if its output is missing.
+GALLERY_RUNS := output/collapse
+GALLERY := docs/gallery
+
+.PHONY: gallery
+gallery: setup
+	[ -n "$$(ls output/collapse/*.xdmf 2>/dev/null)" ] || $(MPIEXEC) -n 2 $(PYTHON) demos/collapse.py
+	$(PYTHON) -m dolfinx_invertible.io.paraview render $(GALLERY_RUNS) --output $(GALLERY)
 
 # Quick sizes of every benchmark, JSON in output/bench/ (full sizes: README, Performance).
 BENCH_JSON := output/bench
