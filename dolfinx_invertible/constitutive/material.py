@@ -126,8 +126,9 @@ class Material:
         batch = canonical_singular_values(given)
         n, d = batch.shape
         energy = np.empty(n)
-        gradient = np.empty((n, d))
-        hessian = np.empty((n, d, d))
+        # Zeros, not empty: the orders not computed still go through the sign flips below.
+        gradient = np.zeros((n, d))
+        hessian = np.zeros((n, d, d))
         region = np.empty(n, dtype=np.int64)
         pointwise.sigma_batch(batch, *self._ids(), order, energy, gradient, hessian, region)
         # Chain rule through the sign flips of the canonicalisation.
