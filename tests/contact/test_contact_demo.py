@@ -23,6 +23,7 @@ def load_demo():
     return module
 
 
+@pytest.mark.mpi
 def test_bowl_drop_setup_and_impact():
     demo = load_demo()
     scene = demo.setup(MPI.COMM_WORLD, cells=3)
