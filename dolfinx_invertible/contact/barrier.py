@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from dolfinx_invertible.constitutive.validation import check_positive
 
@@ -74,19 +75,19 @@ class Barrier:
         t = safe - self.distance
         return d, active, safe, t, np.log(safe / self.distance)
 
-    def value(self, d) -> np.ndarray:
+    def value(self, d: ArrayLike) -> np.ndarray:
         """b(d): +∞ for d ≤ 0 (and NaN gaps), 0 for d ≥ d̂."""
         d, active, _, t, log = self._parts(d)
         inside = -self.stiffness * t * t * log
         return np.where(active, inside, np.where(d >= self.distance, 0.0, math.inf))
 
-    def derivative(self, d) -> np.ndarray:
+    def derivative(self, d: ArrayLike) -> np.ndarray:
         """b′(d): −∞ for d ≤ 0, 0 for d ≥ d̂."""
         d, active, safe, t, log = self._parts(d)
         inside = -self.stiffness * (2.0 * t * log + t * t / safe)
         return np.where(active, inside, np.where(d >= self.distance, 0.0, -math.inf))
 
-    def second_derivative(self, d) -> np.ndarray:
+    def second_derivative(self, d: ArrayLike) -> np.ndarray:
         """b″(d): +∞ for d ≤ 0, 0 for d ≥ d̂."""
         d, active, safe, t, log = self._parts(d)
         ratio = t / safe

@@ -58,7 +58,7 @@ class BoundaryVertices:
         N, the number of boundary vertices over all ranks.
     """
 
-    def __init__(self, space) -> None:
+    def __init__(self, space: dolfinx.fem.FunctionSpace) -> None:
         mesh = space.mesh
         dimension = mesh.geometry.dim
         family, degree = _compat.element_family_and_degree(space)

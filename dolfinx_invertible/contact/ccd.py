@@ -11,13 +11,18 @@ of every point stays positive at every step the line search may try.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from dolfinx_invertible.contact.scene import Scene
 
 __all__ = ["collision_free_step", "first_crossing"]
 
 
-def first_crossing(c0, c1, c2) -> np.ndarray:
+def first_crossing(c0: ArrayLike, c1: ArrayLike, c2: ArrayLike) -> np.ndarray:
     """First α > 0 where c₀ + c₁α + c₂α² falls to 0, elementwise, given c₀ > 0; else inf.
 
     With c₀ > 0 the first positive root, when there is one, is 2c₀ / (−c₁ + √(c₁² − 4c₀c₂))
@@ -38,7 +43,7 @@ def first_crossing(c0, c1, c2) -> np.ndarray:
 
 
 def collision_free_step(
-    scene, positions: np.ndarray, direction: np.ndarray, t: float, *, fraction: float = 0.9
+    scene: Scene, positions: np.ndarray, direction: np.ndarray, t: float, *, fraction: float = 0.9
 ) -> float:
     """Largest α ≤ 1 for the motion ``positions + α · direction`` against ``scene`` at time t.
 

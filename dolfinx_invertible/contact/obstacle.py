@@ -15,6 +15,7 @@ direction Rᵀp): each shape's crossing test is exact for moving obstacles at a 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from dolfinx_invertible.contact.ccd import first_crossing
 from dolfinx_invertible.contact.motion import RigidMotion
@@ -61,12 +62,14 @@ class Obstacle:
             return x, None
         return self.motion.to_body(x, t)
 
-    def gap(self, x, t: float = 0.0) -> np.ndarray:
+    def gap(self, x: ArrayLike, t: float = 0.0) -> np.ndarray:
         """Return the signed gap at the points ``x`` (n, d) at time ``t``: shape (n,)."""
         y, _ = self._to_body(self._points("x", x), t)
         return self._gap(y)
 
-    def gap_derivatives(self, x, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def gap_derivatives(
+        self, x: ArrayLike, t: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the gap (n,), its gradient (n, d) and Hessian (n, d, d) in x at time ``t``.
 
         Where the gap's derivatives do not exist (the centre of a sphere, the axis of a
@@ -79,7 +82,7 @@ class Obstacle:
             hessian = R @ hessian @ R.T
         return gap, gradient, hessian
 
-    def first_crossing(self, x, direction, t: float = 0.0) -> np.ndarray:
+    def first_crossing(self, x: ArrayLike, direction: ArrayLike, t: float = 0.0) -> np.ndarray:
         """First α > 0 at which the gap along ``x + α · direction`` reaches 0, at time ``t``.
 
         ``x`` and ``direction`` are (n, d). Returns (n,): ``inf`` where the path never reaches

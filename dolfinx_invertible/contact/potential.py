@@ -19,10 +19,13 @@ gradient NaN, so a solver that starts from, or is given, such a state fails visi
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from dolfinx_invertible.contact.barrier import Barrier
+from dolfinx_invertible.contact.obstacle import Obstacle
 from dolfinx_invertible.contact.scene import Scene
 
 __all__ = ["BarrierPotential", "project_blocks"]
@@ -48,7 +51,7 @@ class BarrierPotential:
         The :class:`~dolfinx_invertible.contact.barrier.Barrier`.
     """
 
-    def __init__(self, scene, barrier: Barrier) -> None:
+    def __init__(self, scene: Scene | Obstacle | Sequence[Obstacle], barrier: Barrier) -> None:
         self.scene = Scene(scene)
         if not isinstance(barrier, Barrier):
             raise ValueError(f"barrier must be a Barrier, got {barrier!r}")
@@ -65,7 +68,7 @@ class BarrierPotential:
             raise ValueError(f"weights must have shape ({len(positions)},), got {weights.shape}")
         return positions, weights
 
-    def energy(self, positions, weights, t: float = 0.0) -> float:
+    def energy(self, positions: ArrayLike, weights: ArrayLike, t: float = 0.0) -> float:
         """Return E; +∞ if a point is on or inside an obstacle."""
         positions, weights = self._check(positions, weights)
         gaps = self.scene.gaps(positions, t)
@@ -78,7 +81,7 @@ class BarrierPotential:
         gaps = self.scene.gaps(positions, t)
         return gaps < self.barrier.distance, gaps
 
-    def gradient(self, positions, weights, t: float = 0.0) -> np.ndarray:
+    def gradient(self, positions: ArrayLike, weights: ArrayLike, t: float = 0.0) -> np.ndarray:
         """Return ∂E/∂xᵢ (n, d); NaN rows at points on or inside an obstacle."""
         positions, weights = self._check(positions, weights)
         gradient = np.zeros_like(positions)
@@ -96,7 +99,7 @@ class BarrierPotential:
         return gradient
 
     def hessians(
-        self, positions, weights, t: float = 0.0, *, project: bool = True
+        self, positions: ArrayLike, weights: ArrayLike, t: float = 0.0, *, project: bool = True
     ) -> tuple[np.ndarray, np.ndarray]:
         """Return the points with a nonzero Hessian and their d × d blocks ∂²E/∂xᵢ².
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from dolfinx_invertible.contact.obstacle import Obstacle
 
@@ -52,14 +53,14 @@ class Scene:
     def __getitem__(self, index: int) -> Obstacle:
         return self.obstacles[index]
 
-    def gaps(self, x, t: float = 0.0) -> np.ndarray:
+    def gaps(self, x: ArrayLike, t: float = 0.0) -> np.ndarray:
         """Return the gap of every point ``x`` (n, d) to every obstacle: shape (obstacles, n)."""
         x = np.asarray(x, dtype=np.float64)
         if len(x) == 0:
             return np.zeros((len(self), 0))
         return np.stack([obstacle.gap(x, t) for obstacle in self.obstacles])
 
-    def first_crossing(self, x, direction, t: float = 0.0) -> np.ndarray:
+    def first_crossing(self, x: ArrayLike, direction: ArrayLike, t: float = 0.0) -> np.ndarray:
         """First α > 0 at which ``x + α · direction`` reaches any obstacle: shape (n,)."""
         x = np.asarray(x, dtype=np.float64)
         if len(x) == 0:

@@ -9,10 +9,17 @@ that the line search only ever evaluates states with every gap positive.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from mpi4py import MPI
+
+from petsc4py import PETSc
 
 from dolfinx_invertible.constitutive.validation import check_open_unit_interval
 from dolfinx_invertible.contact.ccd import collision_free_step
+
+if TYPE_CHECKING:
+    from dolfinx_invertible.contact.term import ContactTerm
 
 __all__ = ["CollisionFreeStep"]
 
@@ -29,11 +36,11 @@ class CollisionFreeStep:
         The share of the first crossing a step may reach, in (0, 1).
     """
 
-    def __init__(self, term, *, fraction: float = 0.9) -> None:
+    def __init__(self, term: ContactTerm, *, fraction: float = 0.9) -> None:
         self.term = term
         self.fraction = check_open_unit_interval("fraction", fraction)
 
-    def largest_step(self, direction, sign: float = 1.0) -> float:
+    def largest_step(self, direction: PETSc.Vec, sign: float = 1.0) -> float:
         """Largest α ≤ 1 for ``u + α · sign · direction`` (a PETSc Vec), over all ranks."""
         term = self.term
         values = direction.getArray(readonly=True)

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 from mpi4py import MPI
 
+import dolfinx.fem
 import numpy as np
 from petsc4py import PETSc
 
@@ -27,6 +28,7 @@ from dolfinx_invertible.contact.boundary import BoundaryVertices
 from dolfinx_invertible.contact.obstacle import Obstacle
 from dolfinx_invertible.contact.potential import BarrierPotential
 from dolfinx_invertible.contact.scene import Scene
+from dolfinx_invertible.contact.step import CollisionFreeStep
 
 __all__ = ["ContactTerm"]
 
@@ -78,7 +80,7 @@ class ContactTerm:
 
     def __init__(
         self,
-        u,
+        u: dolfinx.fem.Function,
         obstacles: Obstacle | Sequence[Obstacle] | Scene,
         material: Material | None = None,
         *,
@@ -201,13 +203,11 @@ class ContactTerm:
             self.u.x.scatter_forward()
         return moved
 
-    def step_limit(self, fraction: float = 0.9):
+    def step_limit(self, fraction: float = 0.9) -> CollisionFreeStep:
         """Return the collision-free step cap of this term (a ``StepLimit``).
 
         See :class:`~dolfinx_invertible.contact.step.CollisionFreeStep`.
         """
-        from dolfinx_invertible.contact.step import CollisionFreeStep
-
         return CollisionFreeStep(self, fraction=fraction)
 
     # -- EnergyTerm ---------------------------------------------------------------------------

@@ -39,7 +39,7 @@ def symmetry_conditions(space, planes):
             mesh, 0, lambda x, k=component, v=value: np.isclose(x[k], v)
         )
         dofs = dolfinx.fem.locate_dofs_topological(space.sub(component), 0, vertices)
-        conditions.append(dolfinx.fem.dirichletbc(0.0, dofs, space.sub(component)))
+        conditions.append(dolfinx.fem.dirichletbc(np.float64(0.0), dofs, space.sub(component)))
     return conditions
 
 

@@ -8,6 +8,10 @@ No DOLFINx.
 """
 
 import math
+import os
+import pathlib
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -229,3 +233,25 @@ def test_scene_evaluates_every_obstacle():
 def test_bad_input_is_refused(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def test_numpy_layer_does_not_load_dolfinx():
+    # In a fresh interpreter: this one has DOLFINx loaded by the test configuration.
+    root = pathlib.Path(__file__).resolve().parents[2]
+    code = (
+        "import sys\n"
+        "from dolfinx_invertible import contact\n"
+        "shapes = [contact.HalfSpace((0, 1), 0), contact.Cone((0, 0), (1, 0), 1, 0)]\n"
+        "scene = contact.Scene(shapes)\n"
+        "contact.BarrierPotential(scene, contact.Barrier(0.1, 1.0))\n"
+        "names = ('dolfinx', 'petsc4py', 'ufl', 'basix')\n"
+        "loaded = [name for name in names if name in sys.modules]\n"
+        "assert not loaded, loaded\n"
+    )
+    environment = dict(
+        os.environ, PYTHONPATH=os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])
+    )
+    completed = subprocess.run(
+        [sys.executable, "-c", code], env=environment, capture_output=True, text=True, timeout=120
+    )
+    assert completed.returncode == 0, completed.stderr
