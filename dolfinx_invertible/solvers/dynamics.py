@@ -59,8 +59,9 @@ class ImplicitDynamics:
     external_energy
         Further UFL potential in ``u`` (tractions, springs, ...).
     boundary_update
-        ``boundary_update(t)`` sets the Dirichlet values (and any time-dependent load) for
-        time ``t``; called before every solve attempt.
+        ``boundary_update(t)`` sets the Dirichlet values (and any time-dependent load or
+        obstacle) for time ``t``; called before every solve attempt, when ``u`` already holds
+        that attempt's initial guess (the previous state), which it may adjust.
     scheme
         ``"backward-euler"`` (default; first order, strongly damping) or ``"bdf2"`` (second
         order, variable step).
@@ -195,9 +196,11 @@ class ImplicitDynamics:
 
     def _attempt(self, start: float, end: float) -> SolveResult:
         self._prepare(end - start)
+        # The initial guess before the update, so that the update may adjust it (move boundary
+        # vertices out of an obstacle that has moved into them).
+        self.u.x.array[:] = self.previous.x.array
         if self.boundary_update is not None:
             self.boundary_update(end)
-        self.u.x.array[:] = self.previous.x.array
         return self.problem.solve()
 
     def _restore(self, start: float) -> None:

@@ -1,0 +1,244 @@
+"""The contact barrier as an energy term of a DOLFINx problem (the solvers' ``EnergyTerm``).
+
+:class:`ContactTerm` adds Σᵢ wᵢ Σₒ b(dₒ(Xᵢ + uᵢ, t)) over the boundary vertices to the
+potential, its gradient to the residual and its SPD-projected Hessian to the tangent. Each rank
+evaluates the boundary vertices whose displacement dofs it owns, so every vertex is counted
+once and the result does not depend on the partition.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from mpi4py import MPI
+
+import dolfinx.fem
+import numpy as np
+from petsc4py import PETSc
+
+from dolfinx_invertible.constitutive.material import Material
+from dolfinx_invertible.contact.barrier import (
+    DEFAULT_DISTANCE_FRACTION,
+    Barrier,
+    barrier_distance,
+    barrier_stiffness,
+)
+from dolfinx_invertible.contact.boundary import BoundaryVertices
+from dolfinx_invertible.contact.obstacle import Obstacle
+from dolfinx_invertible.contact.potential import BarrierPotential
+from dolfinx_invertible.contact.scene import Scene
+from dolfinx_invertible.contact.step import CollisionFreeStep
+
+__all__ = ["ContactTerm"]
+
+# Projection passes of ContactTerm.separate over all obstacles; each pass is exact for a plane
+# and converges quadratically on the curved shapes, so few are needed.
+_SEPARATION_PASSES = 8
+
+
+class ContactTerm:
+    """Frictionless contact of a body with rigid (possibly moving) obstacles, as a barrier.
+
+    Pass it to :class:`~dolfinx_invertible.HyperelasticProblem` (or
+    :class:`~dolfinx_invertible.ImplicitDynamics`) as ``terms=[term]`` together with
+    ``step_limits=[term.step_limit()]``, the continuous collision detection that keeps every
+    Newton iterate outside the obstacles.
+
+    Parameters
+    ----------
+    u
+        The displacement (vector Lagrange P1 or P2; on P2 the barrier acts on the vertex dofs).
+    obstacles
+        An :class:`~dolfinx_invertible.contact.obstacle.Obstacle`, several, or a
+        :class:`~dolfinx_invertible.contact.scene.Scene`.
+    material
+        The body's :class:`~dolfinx_invertible.Material`: its Young's modulus sets κ. Not
+        needed if ``youngs_modulus`` or ``stiffness`` is given.
+    youngs_modulus
+        E for the stiffness rule, instead of the material's.
+    distance
+        d̂; default ``distance_fraction`` × the boundary vertex spacing h.
+    distance_fraction
+        d̂ / h when ``distance`` is not given.
+    stiffness
+        κ; default E / ((5 + 2 ln 2) h)
+        (:func:`~dolfinx_invertible.contact.barrier.barrier_stiffness`).
+    time
+        The time at which the obstacles are evaluated until :meth:`set_time` changes it.
+
+    Attributes
+    ----------
+    boundary
+        The :class:`~dolfinx_invertible.contact.boundary.BoundaryVertices` this rank evaluates.
+    scene, barrier, potential
+        The obstacles, the :class:`~dolfinx_invertible.contact.barrier.Barrier` (d̂, κ) and
+        the :class:`~dolfinx_invertible.contact.potential.BarrierPotential`.
+    time
+        The current time of the obstacles.
+    """
+
+    def __init__(
+        self,
+        u: dolfinx.fem.Function,
+        obstacles: Obstacle | Sequence[Obstacle] | Scene,
+        material: Material | None = None,
+        *,
+        youngs_modulus: float | None = None,
+        distance: float | None = None,
+        distance_fraction: float = DEFAULT_DISTANCE_FRACTION,
+        stiffness: float | None = None,
+        time: float = 0.0,
+    ) -> None:
+        self.u = u
+        self.scene = Scene(obstacles)
+        self.boundary = BoundaryVertices(u.function_space)
+        if self.scene.dimension != self.boundary.dimension:
+            raise ValueError(
+                f"the obstacles are {self.scene.dimension}D but the mesh is "
+                f"{self.boundary.dimension}D"
+            )
+        spacing = self.boundary.spacing
+        if distance is None:
+            distance = barrier_distance(spacing, distance_fraction)
+        if stiffness is None:
+            if youngs_modulus is None:
+                if material is None:
+                    raise ValueError(
+                        "the barrier stiffness needs a scale: give the material, "
+                        "youngs_modulus or stiffness"
+                    )
+                if not isinstance(material, Material):
+                    raise ValueError(f"material must be a Material, got {material!r}")
+                youngs_modulus = material.model.youngs_modulus
+            stiffness = barrier_stiffness(youngs_modulus, spacing)
+        self.barrier = Barrier(distance, stiffness)
+        self.potential = BarrierPotential(self.scene, self.barrier)
+        self.comm = u.function_space.mesh.comm
+        self.time = 0.0
+        self.set_time(time)
+
+    # -- state --------------------------------------------------------------------------------
+    def set_time(self, t: float) -> None:
+        """Evaluate the obstacles at time ``t`` from now on (call before each step)."""
+        t = float(t)
+        if not math.isfinite(t):
+            raise ValueError(f"time must be finite, got {t!r}")
+        self.time = t
+
+    def positions(self) -> np.ndarray:
+        """Return the current positions X + u of this rank's boundary vertices, (n, d)."""
+        return self.boundary.positions(self.u.x.array)
+
+    def gaps(self) -> np.ndarray:
+        """Gaps of this rank's boundary vertices to every obstacle, (obstacles, n)."""
+        return self.scene.gaps(self.positions(), self.time)
+
+    def minimum_gap(self) -> float:
+        """Smallest gap of any boundary vertex to any obstacle, over all ranks."""
+        gaps = self.gaps()
+        local = float(np.min(gaps)) if gaps.size else math.inf
+        return self.comm.allreduce(local, op=MPI.MIN)
+
+    def penetrations(self) -> int:
+        """Boundary vertices on or inside an obstacle (some gap ≤ 0), over all ranks."""
+        gaps = self.gaps()
+        local = int(np.count_nonzero(~np.all(gaps > 0.0, axis=0))) if gaps.size else 0
+        return self.comm.allreduce(local, op=MPI.SUM)
+
+    def active_vertices(self) -> int:
+        """Boundary vertices within d̂ of some obstacle (the barrier acts), over all ranks."""
+        gaps = self.gaps()
+        local = int(np.count_nonzero(np.any(gaps < self.barrier.distance, axis=0)))
+        return self.comm.allreduce(local, op=MPI.SUM)
+
+    def contact_force(self, obstacle: int | None = None) -> np.ndarray:
+        """Total force the obstacles (or obstacle number ``obstacle``) exert on the body.
+
+        −Σᵢ ∂E/∂xᵢ over all boundary vertices and ranks, a vector of d entries.
+        """
+        scene = self.scene if obstacle is None else Scene(self.scene[obstacle])
+        potential = BarrierPotential(scene, self.barrier)
+        gradient = potential.gradient(self.positions(), self.boundary.weights, self.time)
+        return -self.comm.allreduce(np.sum(gradient, axis=0), op=MPI.SUM)
+
+    def separate(self, gap: float | None = None) -> int:
+        """Move the boundary vertices that are on or inside an obstacle out to ``gap``.
+
+        An obstacle that moved between two steps may have swept over boundary vertices of the
+        previous state, the initial guess of the next solve, where the barrier is undefined.
+        This moves each such vertex along the gap's gradient (a few projection passes over the
+        obstacles) until its gaps are at least ``gap`` (default d̂/2), changing ``u`` only
+        there; the solve then starts from a feasible state and relaxes the distorted
+        elements around it. Call it after :meth:`set_time` and before the solve (in
+        ``boundary_update`` of :class:`~dolfinx_invertible.ImplicitDynamics`, in the load
+        update of a load-stepping loop).
+
+        Returns
+        -------
+        int
+            Vertices moved, over all ranks.
+        """
+        target = 0.5 * self.barrier.distance if gap is None else float(gap)
+        if not (math.isfinite(target) and target > 0.0):
+            raise ValueError(f"gap must be a finite number > 0, got {gap!r}")
+        positions = self.positions()
+        infeasible = np.flatnonzero(~np.all(self.scene.gaps(positions, self.time) > 0.0, axis=0))
+        if len(infeasible):
+            points = positions[infeasible]
+            for _ in range(_SEPARATION_PASSES):
+                for obstacle in self.scene:
+                    gaps, gradients, _ = obstacle.gap_derivatives(points, self.time)
+                    short = gaps < target
+                    length2 = np.einsum("ij,ij->i", gradients, gradients)
+                    short &= length2 > 0.0
+                    shift = (target - gaps[short]) / length2[short]
+                    points[short] += shift[:, None] * gradients[short]
+                if np.all(self.scene.gaps(points, self.time) >= 0.5 * target):
+                    break
+            dofs = self.boundary.dofs[infeasible]
+            self.u.x.array[dofs] = points - self.boundary.reference[infeasible]
+        moved = self.comm.allreduce(len(infeasible), op=MPI.SUM)
+        if moved:
+            self.u.x.scatter_forward()
+        return moved
+
+    def step_limit(self, fraction: float = 0.9) -> CollisionFreeStep:
+        """Return the collision-free step cap of this term (a ``StepLimit``).
+
+        See :class:`~dolfinx_invertible.contact.step.CollisionFreeStep`.
+        """
+        return CollisionFreeStep(self, fraction=fraction)
+
+    # -- EnergyTerm ---------------------------------------------------------------------------
+    def energy(self) -> float:
+        """Return this rank's share of the barrier energy at the current ``u`` (+∞: penetrated)."""
+        return self.potential.energy(self.positions(), self.boundary.weights, self.time)
+
+    def add_residual(self, residual: np.ndarray) -> None:
+        """Add the barrier's gradient into the local residual array (owned dofs only).
+
+        NaN goes into the dofs of a vertex on or inside an obstacle, which makes the solve fail
+        (and a step controller cut the step) instead of continuing from an infeasible state.
+        """
+        gradient = self.potential.gradient(self.positions(), self.boundary.weights, self.time)
+        residual[self.boundary.dofs] += gradient
+
+    def add_tangent(self, matrix: PETSc.Mat, constrained: np.ndarray) -> None:
+        """Add the SPD-projected barrier Hessian (a d × d block per active vertex)."""
+        points, blocks = self.potential.hessians(
+            self.positions(), self.boundary.weights, self.time, project=True
+        )
+        if len(points) == 0:
+            return
+        rows = self.boundary.dofs[points].astype(PETSc.IntType)
+        if len(constrained):
+            # PETSc skips negative indices: the Dirichlet rows and columns stay untouched.
+            rows[np.isin(rows, constrained)] = -1
+        d = rows.shape[1]
+        matrix.setValuesLocalRCV(
+            rows, rows, blocks.reshape(len(points), d * d), addv=PETSc.InsertMode.ADD_VALUES
+        )
+
+    def __repr__(self) -> str:
+        return f"ContactTerm(scene={self.scene!r}, barrier={self.barrier!r}, time={self.time!r})"
