@@ -136,6 +136,10 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
                                 "(exact, projected where the exact one gives no descent), yes "
                                 "(SPD-projected), no (exact) (default: "
                                 f"{default('project')})")  # fmt: skip
+    discretisation.add_argument("--elastic", choices=["kernels", "ufl"], help="how the elastic "
+                                "energy is assembled: this package's kernels, or DOLFINx's own "
+                                "route (plain Neo-Hookean in UFL, compiled by FFCx) (default: "
+                                f"{default('elastic')})")  # fmt: skip
     discretisation.add_argument("--inversion-free", type=float, metavar="FRACTION",
                                 dest="inversion_free", help="cap Newton steps so that no point's "
                                 "volume falls below FRACTION of its current value (default: "
@@ -294,13 +298,10 @@ def _report(arguments: argparse.Namespace) -> int:
     return module.command(arguments)
 
 
-#: Reports: command name -> (module in dolfinx_invertible.reports, one-line description).
-REPORTS: dict[str, tuple[str, str]] = {}
-
-
 def parser() -> argparse.ArgumentParser:
     """Return the argument parser of the whole command line."""
     from dolfinx_invertible.bench import BENCHMARKS
+    from dolfinx_invertible.reports import REPORTS
     from dolfinx_invertible.scenes import SCENES, get_scene
 
     top = argparse.ArgumentParser(
@@ -333,11 +334,13 @@ def parser() -> argparse.ArgumentParser:
 
     report_parser = commands.add_parser("report", help="write a report", description="Reports.")
     reports = report_parser.add_subparsers(dest="report", required=True, metavar="NAME")
-    for name, (module_name, description) in REPORTS.items():
+    for name, description in REPORTS.items():
+        module_name = name.replace("-", "_")
+        module = importlib.import_module(f"dolfinx_invertible.reports.{module_name}")
+        if not hasattr(module, "add_arguments"):
+            continue
         subparser = reports.add_parser(name, help=description, description=description)
-        importlib.import_module(f"dolfinx_invertible.reports.{module_name}").add_arguments(
-            subparser
-        )
+        module.add_arguments(subparser)
         subparser.set_defaults(handler=_report, report_module=module_name)
 
     compile_parser = commands.add_parser(

@@ -80,6 +80,9 @@ class Parameters:
         Mesh choice of scenes that offer several (e.g. ``"cube"`` or ``"armadillo-like"``).
     dimension
         Space dimension of scenes that exist in 2D and 3D.
+    elastic
+        How the elastic energy is assembled: ``"kernels"`` (this package) or ``"ufl"``
+        (DOLFINx's own route: plain Neo-Hookean in UFL, compiled by FFCx).
     """
 
     model: str = "neo-hookean"
@@ -101,6 +104,7 @@ class Parameters:
     size: float = 1.0
     mesh: str = "cube"
     dimension: int = 3
+    elastic: str = "kernels"
 
     def validate(self) -> None:
         """Raise ``ValueError`` with the option name for any value outside its range."""
@@ -137,6 +141,13 @@ class Parameters:
         _positive("--size", self.size)
         if self.dimension not in (2, 3):
             raise ValueError(f"--dimension must be 2 or 3, got {self.dimension!r}")
+        if self.elastic not in ("kernels", "ufl"):
+            raise ValueError(f"--elastic must be kernels or ufl, got {self.elastic!r}")
+        if self.elastic == "ufl" and (self.model != "neo-hookean" or self.extension != "none"):
+            raise ValueError(
+                "--elastic ufl (DOLFINx's own route) is plain Neo-Hookean only: use --model "
+                "neo-hookean --extension none"
+            )
 
     @property
     def wave_speed(self) -> float:

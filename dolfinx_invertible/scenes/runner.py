@@ -235,6 +235,12 @@ def run_scene(
     options.setdefault("petsc_options", petsc_options)
     if parameters.inversion_free is not None:
         options.setdefault("inversion_free", parameters.inversion_free)
+    options.setdefault("elastic", parameters.elastic)
+    terms, limits = scene.terms(u), scene.step_limits(u)
+    if terms:
+        options.setdefault("terms", terms)
+    if limits:
+        options.setdefault("step_limits", limits)
     run = Run(scene=scene, parameters=parameters, material=material, mesh=mesh, u=u)
     if scene.dynamic:
         velocity = None

@@ -93,6 +93,14 @@ class Scene:
         """Return the body acceleration g, or None (dynamic scenes)."""
         return None
 
+    def terms(self, u) -> list:
+        """Return energy terms that are not forms (e.g. contact barriers), built on ``u``."""
+        return []
+
+    def step_limits(self, u) -> list:
+        """Return step caps (e.g. continuous collision detection), built on ``u``."""
+        return []
+
     def problem_options(self) -> dict[str, Any]:
         """Return further options of the problem (e.g. ``quadrature_degree``)."""
         return {}

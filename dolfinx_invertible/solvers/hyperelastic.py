@@ -15,6 +15,7 @@ import ufl
 from dolfinx_invertible.constitutive.material import Material
 from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
 from dolfinx_invertible.fem.forms import HyperelasticForms
+from dolfinx_invertible.fem.ufl_forms import UFLNeoHookeanForms
 from dolfinx_invertible.solvers.newton import EnergyMinimizer
 from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX
 from dolfinx_invertible.solvers.problem import EnergyProblem, EnergyTerm
@@ -83,6 +84,10 @@ class HyperelasticProblem:
     terms
         Energy contributions that are not forms
         (:class:`~dolfinx_invertible.solvers.problem.EnergyTerm`), e.g. a contact barrier.
+    elastic
+        How the elastic energy is assembled: ``"kernels"`` (default, this package's numba
+        kernels) or ``"ufl"`` (DOLFINx's own route, UFL compiled by FFCx: plain Neo-Hookean
+        only, exact tangent only — the baseline of comparisons).
 
     Attributes
     ----------
@@ -110,15 +115,25 @@ class HyperelasticProblem:
         inversion_free: float | None = None,
         step_limits: Sequence[StepLimit] = (),
         terms: Sequence[EnergyTerm] = (),
+        elastic: str = "kernels",
     ):
         mesh = u.function_space.mesh
         if project not in (True, False, "auto"):
             raise ValueError(f"project must be True, False or 'auto', got {project!r}")
+        if elastic not in ("kernels", "ufl"):
+            raise ValueError(f"elastic must be 'kernels' or 'ufl', got {elastic!r}")
+        if elastic == "ufl":
+            if project is True:
+                raise ValueError("DOLFINx's own route (elastic='ufl') has no projected tangent")
+            project = False
         self.project = project
         # The forms validate the space and geometry first: the volume check assumes both.
-        self.forms = HyperelasticForms(
-            u, material, quadrature_degree=quadrature_degree, project=project is True
-        )
+        if elastic == "ufl":
+            self.forms = UFLNeoHookeanForms(u, material, quadrature_degree=quadrature_degree)
+        else:
+            self.forms = HyperelasticForms(
+                u, material, quadrature_degree=quadrature_degree, project=project is True
+            )
         check_mesh(mesh)
         bcs = list(bcs)
         check_boundary_conditions(bcs, mesh.comm)
@@ -170,7 +185,7 @@ class HyperelasticProblem:
         counts = self.forms.path_counts()
         # One reduction for all kernels: rows (points, points through the SVD).
         totals = self.u.function_space.mesh.comm.allreduce(
-            np.array(list(counts.values())), op=MPI.SUM
+            np.array(list(counts.values()), dtype=np.int64).reshape(-1, 2), op=MPI.SUM
         )
         shares = {
             kind: float(svd_points / points) if points > 0 else None
