@@ -54,6 +54,10 @@ _LAZY = {
     "EnergyTerm": "dolfinx_invertible.solvers.problem",
     "StepLimit": "dolfinx_invertible.solvers.step_limit",
     "ResultWriter": "dolfinx_invertible.io.xdmf",
+    "NonlinearProblem": "dolfinx_invertible.solvers.drop_in",
+    "NewtonSolverNonlinearProblem": "dolfinx_invertible.solvers.drop_in",
+    "SNESNonlinearProblem": "dolfinx_invertible.solvers.drop_in",
+    "UFLNeoHookeanForms": "dolfinx_invertible.fem.ufl_forms",
 }
 
 

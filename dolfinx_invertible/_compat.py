@@ -320,3 +320,24 @@ def read_xdmf_mesh(comm, path, grid_name: str = "Grid"):
     """Read a mesh (in parallel) from an XDMF file written by meshio (grid name "Grid")."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as xdmf:
         return xdmf.read_mesh(name=grid_name)
+
+
+#: DOLFINx's ``fem.petsc.NonlinearProblem`` drives PETSc SNES itself from 0.10 on (before, it is
+#: the problem ``nls.petsc.NewtonSolver`` solves, renamed ``NewtonSolverNonlinearProblem``).
+NONLINEAR_PROBLEM_IS_SNES = DOLFINX_VERSION >= (0, 10)
+
+
+def form_compilation_options(form_compiler_options: dict | None, jit_options: dict | None) -> dict:
+    """Return the keyword arguments of ``dolfinx.fem.form`` for these options.
+
+    They are ``form_compiler_params`` and ``jit_params`` up to 0.6, ``form_compiler_options`` and
+    ``jit_options`` from 0.7 on.
+    """
+    new_names = DOLFINX_VERSION >= (0, 7)
+    options = {}
+    if form_compiler_options is not None:
+        key = "form_compiler_options" if new_names else "form_compiler_params"
+        options[key] = form_compiler_options
+    if jit_options is not None:
+        options["jit_options" if new_names else "jit_params"] = jit_options
+    return options
