@@ -1,5 +1,5 @@
 # Two commands set everything up on a fresh Debian bookworm machine:
-#   make demo   -- installs what is missing, then runs the main demo
+#   make demo   -- installs what is missing, then runs the main job (collapse and scatter, MPI)
 #   make test   -- installs what is missing, then runs the tests serially and under MPI
 SHELL := /bin/bash
 VENV := .venv
@@ -71,20 +71,17 @@ test-mpi: setup
 test-compat: setup
 	tools/compat/run.sh
 
+# The main job: the collapsed and the scattered cube (paper Fig. 5) under two MPI ranks, into
+# results/<scene>/ (XDMF for ParaView, step log, summary.json); each prints its summary.
 demo: setup
-	$(PYTHON) demos/constitutive.py
-	$(MPIEXEC) -n 2 $(PYTHON) demos/collapse.py
+	$(MPIEXEC) -n 2 $(PYTHON) -m dolfinx_invertible run collapse --out results/collapse
+	$(MPIEXEC) -n 2 $(PYTHON) -m dolfinx_invertible run scatter --out results/scatter
 
-# One picture per run (each .xdmf file in the directories of GALLERY_RUNS) in
-# docs/gallery/<directory>/<run>.png, rendered by ParaView (docs/paraview.md). Runs the collapse
-# demo first if its output is missing.
-GALLERY_RUNS := output/collapse
-GALLERY := docs/gallery
-
+# One picture per gallery entry (tools/gallery.py: runs each scene with the command the README
+# shows, renders it with ParaView into docs/gallery/, rewrites the README's gallery table).
 .PHONY: gallery
 gallery: setup
-	[ -n "$$(ls output/collapse/*.xdmf 2>/dev/null)" ] || $(MPIEXEC) -n 2 $(PYTHON) demos/collapse.py
-	$(PYTHON) -m dolfinx_invertible.io.paraview render $(GALLERY_RUNS) --output $(GALLERY)
+	$(PYTHON) tools/gallery.py
 
 # Quick sizes of every benchmark, JSON in output/bench/ (full sizes: README, Performance).
 BENCH_JSON := output/bench

@@ -1,0 +1,147 @@
+"""Run every scene of the gallery, render one picture each with ParaView, write the table.
+
+Usage (``make gallery`` runs it): ``.venv/bin/python tools/gallery.py [SCENE ...]``
+
+For each entry of :data:`GALLERY` it runs the exact command the README shows (a child process,
+so the measured wall time is what a user sees, start-up included), renders
+``docs/gallery/<name>.png`` from the run's own XDMF at a telling time, and records the command,
+the wall time and the outcome in ``docs/gallery/gallery.json``; the README's gallery table
+(between its markers) is rewritten from that file. Entries not run keep their last record.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+GALLERY_DIRECTORY = REPOSITORY / "docs" / "gallery"
+README = REPOSITORY / "README.md"
+BEGIN, END = "<!-- gallery:begin -->", "<!-- gallery:end -->"
+
+# name, scene, arguments, ranks, the time to show, what the picture shows
+GALLERY = [
+    ("collapse", "collapse", [], 2, 0.04, "cube collapsed to a point springing back (t = 0.04 s)"),
+    ("scatter", "scatter", [], 2, "first", "scattered vertices, half the cells inverted (red) at t = 0"),
+    ("scatter-end", "scatter", [], 2, "last", "the same cube back at rest"),
+    ("stretch-bar-corotated", "stretch-bar", ["--model", "corotated"], 1, "most-inverted",
+     "corotated bar at 4× stretch: inverted cells along the bar"),
+    ("stretch-bar", "stretch-bar", [], 1, "last", "Neo-Hookean + C2 at 4× stretch: no inversion"),
+    ("tet-stretch-corotated", "tet-stretch", ["--model", "corotated"], 1, "last",
+     "one corotated tetrahedron driven onto the energy kink"),
+    ("mattress-2d-corotated", "mattress-2d", ["--model", "corotated", "--nu", "0.45"], 1, "last",
+     "corotated mattress at 3× stretch: inverted elements"),
+    ("triangles-2d-corotated", "triangles-2d", ["--model", "corotated"], 1, 0.02,
+     "three corotated triangles relaxing; the stretched one passes through inversion"),
+    ("cook-membrane", "cook-membrane", [], 1, "last", "Cook's membrane, P2, ν = 0.4999"),
+    ("twisting-column", "twisting-column", ["--scheme", "bdf2"], 1, "last",
+     "twisting column at t = 0.3 s (BDF2)"),
+    ("compress-block", "compress-block", [], 1, "most-inverted",
+     "block under the plate: inverted cells held by the extension"),
+    ("compress-block-end", "compress-block", [], 1, "last", "the block recovered after release"),
+    ("square-inv-free", "square-inv-free", [], 1, "most-inverted",
+     "plain Neo-Hookean squashed with inversion-free steps"),
+]  # fmt: skip
+
+
+def _command(scene: str, arguments: list[str], ranks: int, output: Path) -> list[str]:
+    command = [sys.executable, "-m", "dolfinx_invertible", "run", scene, *arguments, "--quiet",
+               "--out", str(output)]  # fmt: skip
+    if ranks > 1:
+        command = ["mpirun", "-n", str(ranks), *command]
+    return command
+
+
+def _shown_command(scene: str, arguments: list[str], ranks: int) -> str:
+    command = " ".join(["dolfinx-invertible", "run", scene, *map(shlex.quote, arguments)])
+    return f"mpirun -n {ranks} {command}" if ranks > 1 else command
+
+
+def run_entry(entry) -> dict:
+    """Run one gallery entry and render its picture; return its record."""
+    from dolfinx_invertible.io.paraview import render
+
+    name, scene, arguments, ranks, shown_time, caption = entry
+    output = REPOSITORY / "results" / "gallery" / name
+    environment = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    start = time.perf_counter()
+    completed = subprocess.run(
+        _command(scene, arguments, ranks, output), env=environment, capture_output=True,
+        text=True, timeout=3600,
+    )  # fmt: skip
+    wall = time.perf_counter() - start
+    summary = json.loads((output / "summary.json").read_text())
+    if completed.returncode not in (0, 1):
+        raise RuntimeError(f"{name}: {completed.stderr[-2000:]}")
+    picture = GALLERY_DIRECTORY / f"{name}.png"
+    render(output / f"{scene}.xdmf", picture, time=shown_time, title=name)
+    result = summary["outcome"]
+    for key in (
+        "max_inverted",
+        "rest_distance",
+        "tip_displacement",
+        "energy_loss",
+        "cross_section_ratio",
+        "oscillation_amplitude",
+        "min_gap",
+        "penetrations",
+    ):
+        if key in summary and summary[key] is not None:
+            value = summary[key]
+            result += f", {key} {value:.3g}" if isinstance(value, float) else f", {key} {value}"
+    return {
+        "name": name,
+        "scene": scene,
+        "command": _shown_command(scene, arguments, ranks),
+        "caption": caption,
+        "wall_time_s": round(wall, 1),
+        "result": result,
+        "picture": f"docs/gallery/{name}.png",
+    }
+
+
+def table(records: list[dict]) -> str:
+    """Return the README's gallery table."""
+    from dolfinx_invertible.scenes import get_scene
+
+    lines = ["| picture | scene (paper) | what it shows | command | wall time | result |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for record in records:
+        figure = get_scene(record["scene"]).figure
+        lines.append(
+            f"| ![{record['name']}]({record['picture']}) | `{record['scene']}` ({figure}) | "
+            f"{record['caption']} | `{record['command']}` | {record['wall_time_s']} s | "
+            f"{record['result']} |"
+        )
+    return "\n".join(lines)
+
+
+def main(names: list[str]) -> int:
+    """Run the named entries (all by default); rewrite gallery.json and the README table."""
+    GALLERY_DIRECTORY.mkdir(parents=True, exist_ok=True)
+    store = GALLERY_DIRECTORY / "gallery.json"
+    records = {r["name"]: r for r in json.loads(store.read_text())} if store.exists() else {}
+    for entry in GALLERY:
+        if names and entry[0] not in names:
+            continue
+        print(f"gallery: {entry[0]} ...", flush=True)
+        records[entry[0]] = run_entry(entry)
+        print(f"gallery: {entry[0]}: {records[entry[0]]['result']} "
+              f"({records[entry[0]]['wall_time_s']} s)", flush=True)  # fmt: skip
+    ordered = [records[e[0]] for e in GALLERY if e[0] in records]
+    ordered += [r for name, r in records.items() if name not in {e[0] for e in GALLERY}]
+    store.write_text(json.dumps(ordered, indent=2) + "\n")
+    text = README.read_text()
+    if BEGIN in text and END in text:
+        start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
+        README.write_text(text[:start] + "\n" + table(ordered) + "\n" + text[end:])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
