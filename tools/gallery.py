@@ -27,7 +27,7 @@ BEGIN, END = "<!-- gallery:begin -->", "<!-- gallery:end -->"
 # name, scene, arguments, ranks, the time to show, what the picture shows
 GALLERY = [
     ("collapse", "collapse", [], 2, 0.04, "cube collapsed to a point springing back (t = 0.04 s)"),
-    ("scatter", "scatter", [], 2, "first", "scattered vertices, half the cells inverted (red) at t = 0"),
+    ("scatter", "scatter", [], 2, "first", "scattered vertices, half the cells inverted at t = 0"),
     ("scatter-end", "scatter", [], 2, "last", "the same cube back at rest"),
     ("stretch-bar-corotated", "stretch-bar", ["--model", "corotated"], 1, "most-inverted",
      "corotated bar at 4× stretch: inverted cells along the bar"),
