@@ -1,7 +1,7 @@
 """Constitutive demo: energies through inversion and single elements relaxing from inversion.
 
-Runs with ``make demo``. Writes ``output/constitutive/`` (a JSON summary and two PNG figures) and
-prints a short report:
+Run it with ``.venv/bin/python demos/constitutive.py``. Writes ``output/constitutive/`` under the
+working directory (a JSON summary and two PNG figures) and prints a short report:
 
 1. Uniaxial compression σ = (t, 1, 1) from t = 1.5 down to t = -1 (through inversion) for
    Neo-Hookean with the C1 and C2 extensions, corotated and fixed corotated: energy and the
@@ -32,7 +32,7 @@ from dolfinx_invertible import (
     polar_svd,
 )
 
-OUTPUT = pathlib.Path(__file__).resolve().parent.parent / "output" / "constitutive"
+OUTPUT = pathlib.Path("output") / "constitutive"
 
 
 def compression_path(materials: dict[str, Material]) -> dict:

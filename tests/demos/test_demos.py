@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 import re
 import subprocess
@@ -38,3 +39,31 @@ def test_cantilever_demo_runs_and_writes_four_steps(tmp_path):
     energies = [record["energy"] for record in records]
     assert all(later < earlier for earlier, later in zip(energies, energies[1:]))
     assert (tmp_path / "output" / "cantilever.xdmf").exists()
+
+
+def _run_demo(name, cwd, ranks=1, timeout=900):
+    command = [sys.executable, str(ROOT / "demos" / name)]
+    if ranks > 1:
+        command = ["mpirun", "-n", str(ranks), *command]
+    environment = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return subprocess.run(
+        command, cwd=cwd, capture_output=True, text=True, timeout=timeout, env=environment
+    )
+
+
+def test_constitutive_demo_runs(tmp_path):
+    completed = _run_demo("constitutive.py", tmp_path)
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    assert (tmp_path / "output" / "constitutive").is_dir()
+
+
+def test_collapse_demo_under_two_ranks_recovers_with_c2(tmp_path):
+    completed = _run_demo("collapse.py", tmp_path, ranks=2)
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    lines = [line.split() for line in completed.stdout.splitlines()]
+    outcomes = {(line[0], line[1]): line[-1] for line in lines if line and line[0] in
+                ("collapse", "scatter")}  # fmt: skip
+    assert outcomes[("collapse", "c2")] == outcomes[("scatter", "c2")] == "recovered"
+    for name in ("collapse-c2", "scatter-ife"):
+        summary = json.loads((tmp_path / "output" / "collapse" / name / "summary.json").read_text())
+        assert summary["ranks"] == 2
