@@ -14,6 +14,7 @@ The output of a run in its directory (``results/SCENE/`` by default):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -43,8 +44,12 @@ from dolfinx_invertible.solvers.stepping import StepController, solve_load_steps
 __all__ = ["Run", "RunInterrupted", "run_scene", "check_output_directory"]
 
 
-class RunInterrupted(Exception):  # noqa: N818 (an interruption, not an error)
-    """Raised inside a run by SIGINT or SIGTERM, so that the summary still gets written."""
+class RunInterrupted(BaseException):  # noqa: N818 (an interruption, not an error)
+    """Raised inside a run by SIGINT or SIGTERM, so that the summary still gets written.
+
+    A :class:`BaseException`, like :class:`KeyboardInterrupt`: handlers of ``Exception`` (e.g.
+    around a file rewrite) must not turn it into an error.
+    """
 
 
 @dataclasses.dataclass
@@ -136,20 +141,42 @@ def _finite(value):
 
 
 class _Signals:
-    """Turn SIGINT and SIGTERM into :class:`RunInterrupted` while a run is stepping."""
+    """Turn SIGINT and SIGTERM into :class:`RunInterrupted` while a run is stepping.
+
+    Inside :meth:`deferred` (writing a step) a signal is held until the block ends, so every
+    step in the output is complete.
+    """
 
     def __enter__(self):
         self._previous = {}
+        self._held: int | None = None
+        self._deferring = False
         for number in (signal.SIGINT, signal.SIGTERM):
             try:
-                self._previous[number] = signal.signal(number, self._raise)
+                self._previous[number] = signal.signal(number, self._received)
             except ValueError:  # not the main thread
                 pass
         return self
 
+    def _received(self, number, frame):
+        if self._deferring:
+            self._held = number
+        else:
+            self._raise(number)
+
     @staticmethod
-    def _raise(number, frame):
+    def _raise(number):
         raise RunInterrupted(f"interrupted by {signal.Signals(number).name}")
+
+    @contextlib.contextmanager
+    def deferred(self):
+        self._deferring = True
+        try:
+            yield
+        finally:
+            self._deferring = False
+        if self._held is not None:
+            self._raise(self._held)
 
     def __exit__(self, *exception):
         for number, handler in self._previous.items():
@@ -276,14 +303,16 @@ def run_scene(
     failure: dict[str, Any] = {}
     completed = False
     try:
-        with _Signals():
-            _record(run, writer, None)
+        with _Signals() as signals:
+            with signals.deferred():
+                _record(run, writer, None)
             scene.record(run)
 
             def step_done(t: float, result: SolveResult) -> None:
                 run.time = t
                 run.result = result
-                _record(run, writer, result)
+                with signals.deferred():
+                    _record(run, writer, result)
                 scene.record(run)
                 progress.update(
                     t, newton=result.newton_iterations, inverted=run.diagnostics["inverted_cells"]

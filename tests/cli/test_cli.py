@@ -136,7 +136,7 @@ def test_interrupted_run_writes_its_summary(tmp_path, sent):
     _wait_for_steps(process, tmp_path / "scatter.jsonl", 3)
     process.send_signal(sent)
     process.wait(timeout=120)
-    assert process.returncode == 130
+    assert process.returncode == 130, process.stderr.read()[-3000:]
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["completed"] is False and summary["interrupted"] is True
     assert summary["reason"] == f"interrupted by {sent.name}"

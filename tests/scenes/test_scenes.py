@@ -148,3 +148,33 @@ def test_square_inversion_free_never_inverts():
     summary = run("square-inv-free", resolution=4, t_end=0.3)
     assert summary["completed"] and summary["max_inverted"] == 0
     assert summary["min_J_reached"] > 0.0
+
+
+def test_a_signal_during_a_write_waits_for_the_step_to_be_complete(tmp_path, monkeypatch):
+    import os
+    import signal
+
+    import meshio
+
+    from dolfinx_invertible.io.xdmf import ResultWriter
+    from dolfinx_invertible.scenes.runner import RunInterrupted
+
+    original = ResultWriter._merge_step_into_series
+    calls = []
+
+    def merge_with_a_signal(self):
+        calls.append(1)
+        if len(calls) == 3:  # the third step: the signal arrives in the middle of its write
+            os.kill(os.getpid(), signal.SIGTERM)
+        original(self)
+
+    monkeypatch.setattr(ResultWriter, "_merge_step_into_series", merge_with_a_signal)
+    with pytest.raises(RunInterrupted, match="SIGTERM"):
+        run("collapse", tmp_path, resolution=2, t_end=1.0)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["reason"] == "interrupted by SIGTERM"
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "collapse.xdmf")) as reader:
+        reader.read_points_cells()
+        assert reader.num_steps == 3  # the interrupted write finished; nothing after it
+        for step in range(reader.num_steps):
+            reader.read_data(step)

@@ -19,15 +19,20 @@ stages=$root/.compat-stages
 # Debian trixie's own DOLFINx 0.9 lane, plus what the tests and demos import.
 apt_packages=(
   python3-dolfinx-real python3-numba python3-pytest python3-meshio python3-h5py python3-scipy
-  python3-matplotlib python3-tqdm openmpi-bin python3-venv python3-pip ca-certificates
+  python3-matplotlib python3-tqdm python3-gmsh openmpi-bin python3-venv python3-pip
+  ca-certificates paraview python3-paraview xvfb
 )
 # The PyPI lane: DOLFINx 0.11 wheel with its own MPICH, and the same test dependencies from PyPI.
 # h5py < 3.16: its wheels from 3.16 on bundle HDF5 2.0, while the DOLFINx wheel loads HDF5 1.14
 # (through PETSc) into the same process, and h5py then fails with "Not a datatype".
-pip_packages=(dolfinx-solver-real numba pytest meshio "h5py<3.16" scipy matplotlib tqdm)
+pip_packages=(dolfinx-solver-real numba pytest meshio "h5py<3.16" scipy matplotlib tqdm gmsh)
 venv=/opt/dolfinx-wheel
 
 stage_done() { [ -e "$stages/$1" ]; }
+# The package stages are keyed on their lists, so adding a package installs it into a kept root.
+list_key() { printf '%s\n' "$@" | sha256sum | cut -c1-12; }
+apt_stage=apt-$(list_key "${apt_packages[@]}")
+venv_stage=venv-$(list_key "${pip_packages[@]}")
 mark_done() { mkdir -p "$stages" && touch "$stages/$1"; }
 
 ensure_debootstrap() {
@@ -74,7 +79,7 @@ trap 'compat_unmount_all "$root"' EXIT
 trap 'exit 130' INT
 trap 'exit 143' TERM
 
-if ! stage_done apt; then
+if ! stage_done "$apt_stage"; then
   echo "installing trixie packages: ${apt_packages[*]}"
   compat_chroot "$root" env DEBIAN_FRONTEND=noninteractive bash -euo pipefail -c '
     printf "Acquire::Retries \"5\";\n" > /etc/apt/apt.conf.d/80-retries
@@ -82,10 +87,10 @@ if ! stage_done apt; then
     apt-get install -y -q --no-install-recommends "$@"
     apt-get clean
   ' apt "${apt_packages[@]}"
-  mark_done apt
+  mark_done "$apt_stage"
 fi
 
-if ! stage_done venv; then
+if ! stage_done "$venv_stage"; then
   echo "creating the DOLFINx wheel venv: ${pip_packages[*]}"
   compat_chroot "$root" bash -euo pipefail -c '
     rm -rf "$1"
@@ -94,5 +99,5 @@ if ! stage_done venv; then
     PIP_CERT=/usr/local/share/compat-host-ca/ca-certificates.crt \
       "$0"/bin/pip install -q --retries 5 --no-cache-dir "$@"
   ' "$venv" "$venv" "${pip_packages[@]}"
-  mark_done venv
+  mark_done "$venv_stage"
 fi
