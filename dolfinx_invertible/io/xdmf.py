@@ -22,6 +22,15 @@ Function in a temporal collection of its own; readers that take one collection (
 a single field, and ParaView shows the fields as separate blocks. After each step rank 0 moves
 the new attributes, exactly as DOLFINx wrote them, into the one collection.
 
+Why DOLFINx writes to a working copy
+------------------------------------
+DOLFINx rewrites the XML in place when it appends; a run killed at that moment would leave
+``run.xdmf`` holding the unmerged collections of the step in flight. So DOLFINx works on
+``run.xdmf-partial`` (same HDF5 file, whose name DOLFINx derives by replacing the suffix), and
+rank 0 puts each merged XML in place as ``run.xdmf`` with an atomic rename: a reader (or a run
+killed at any instant) sees every completed step and nothing half-written. :meth:`close`
+removes the working copy.
+
 Why the file is closed after every step
 ---------------------------------------
 While a DOLFINx ``XDMFFile`` is open it holds the HDF5 file with its data possibly unflushed
@@ -48,12 +57,14 @@ import numpy as np
 from dolfinx_invertible import _compat
 from dolfinx_invertible.io.step_log import StepLog
 
-__all__ = ["DISPLACEMENT_NAME", "SERIES_NAME", "ResultWriter"]
+__all__ = ["DISPLACEMENT_NAME", "SERIES_NAME", "WORKING_SUFFIX", "ResultWriter"]
 
 #: Name of the displacement attribute in the XDMF file.
 DISPLACEMENT_NAME = "displacement"
 #: Name of the temporal collection grid that holds the steps.
 SERIES_NAME = "time_series"
+#: Suffix of the XML file DOLFINx appends to while a run writes (removed by ``close``).
+WORKING_SUFFIX = ".xdmf-partial"
 
 _XINCLUDE_NAMESPACE = _compat.XDMF_XINCLUDE_NAMESPACE
 _XINCLUDE = f"{{{_XINCLUDE_NAMESPACE}}}include"
@@ -104,6 +115,7 @@ class ResultWriter:
         if self.path.suffix != ".xdmf":
             raise ValueError(f"path must end in .xdmf, got {str(path)!r}")
         self.log_path = self.path.with_suffix(".jsonl") if log_path is None else Path(log_path)
+        self._working_path = self.path.with_suffix(WORKING_SUFFIX)
         self.mesh = mesh
         self.comm = mesh.comm if comm is None else comm
         if MPI.Comm.Compare(self.comm, mesh.comm) not in (MPI.IDENT, MPI.CONGRUENT):
@@ -131,13 +143,18 @@ class ResultWriter:
             self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self.comm.barrier()
         try:
-            with _compat.xdmf_file(self.comm, self.path, "w") as xdmf:
+            with _compat.xdmf_file(self.comm, self._working_path, "w") as xdmf:
                 xdmf.write_mesh(mesh)
         except RuntimeError as error:
             raise ValueError(
                 f"cannot create {self.path.with_suffix('.h5')}: {error} (is another process "
                 "writing it or holding it open? HDF5 locks the files it writes)"
             ) from None
+        if self.comm.rank == 0:
+            # DOLFINx's own file as it is: a rewrite would drop its XInclude namespace
+            # declaration, which its later appends rely on.
+            _replace_atomically(self.path, self._working_path.read_text(encoding="utf-8"))
+        self.comm.barrier()
         self._log = StepLog(self.log_path, self.comm)
 
     def __enter__(self) -> ResultWriter:
@@ -148,9 +165,13 @@ class ResultWriter:
 
     def close(self) -> None:
         """Close the step log. The XDMF file is already complete after every :meth:`write`."""
+        if self._closed:
+            return
         self._closed = True
         if self._log is not None:
             self._log.close()
+        if self.comm.rank == 0:
+            self._working_path.unlink(missing_ok=True)
 
     def write(
         self,
@@ -218,7 +239,7 @@ class ResultWriter:
             function.x.array[self._owned_cell_dofs] = cell_values
             function.x.scatter_forward()
             functions.append(function)
-        with _compat.xdmf_file(self.comm, self.path, "a") as xdmf:
+        with _compat.xdmf_file(self.comm, self._working_path, "a") as xdmf:
             for function in functions:
                 xdmf.write_function(function, float(t))
         self._merge_step_into_series()
@@ -262,7 +283,7 @@ class ResultWriter:
         error = None
         if self.comm.rank == 0:
             try:
-                _merge_new_collections(self.path)
+                _merge_new_collections(self._working_path, self.path)
             except Exception as exception:  # re-raised on every rank below
                 error = f"could not rewrite {self.path}: {exception!r}"
         # Also orders the rewrite before the next append, where every rank reads the XML.
@@ -271,13 +292,15 @@ class ResultWriter:
             raise RuntimeError(error)
 
 
-def _merge_new_collections(path: Path) -> None:
+def _merge_new_collections(working: Path, path: Path) -> None:
     """Fold the per-Function collections DOLFINx just wrote into one step of the series.
 
-    DOLFINx appends one temporal collection per Function name that is not found in the file;
+    DOLFINx appends one temporal collection per Function name that is not found in ``working``;
     since earlier steps were already moved out of them, each holds exactly the one new grid.
+    The result goes back to ``working`` (for DOLFINx's next append) and, atomically, to
+    ``path``.
     """
-    tree = ElementTree.parse(path)
+    tree = ElementTree.parse(working)
     domain = tree.getroot().find("Domain")
     series = None
     new_grids = []
@@ -313,10 +336,13 @@ def _merge_new_collections(path: Path) -> None:
     # The prefix map is global: another library (meshio) may have bound "xi" to the other
     # XInclude URI, which would make DOLFINx's next "xi:include" an unbound prefix.
     ElementTree.register_namespace("xi", _XINCLUDE_NAMESPACE)
+    text = _XML_HEADER + ElementTree.tostring(tree.getroot(), encoding="unicode") + "\n"
+    working.write_text(text, encoding="utf-8")
+    _replace_atomically(path, text)
+
+
+def _replace_atomically(path: Path, text: str) -> None:
     temporary = path.with_name(f".{path.name}.tmp")
-    with open(temporary, "w", encoding="utf-8") as stream:
-        stream.write(_XML_HEADER)
-        stream.write(ElementTree.tostring(tree.getroot(), encoding="unicode"))
-        stream.write("\n")
-    # Atomic on POSIX: a reader sees the previous step's file or this one, never half of it.
+    temporary.write_text(text, encoding="utf-8")
+    # Atomic on POSIX: a reader sees the previous file or this one, never half of it.
     os.replace(temporary, path)
