@@ -29,6 +29,7 @@ import argparse
 import statistics
 
 from dolfinx_invertible.bench import common
+from dolfinx_invertible.fem.forms import default_quadrature_degree
 
 OPERATIONS = ("residual", "tangent", "newton_step")
 
@@ -120,7 +121,7 @@ def run_mesh(comm, cells: int, degree: int, repeats: int, newton_step: bool = Tr
     return {
         "cells": space.mesh.topology.index_map(3).size_global,
         "dofs": index_map.size_global * space.dofmap.index_map_bs,
-        "quadrature_degree": max(1, 2 * (degree - 1)),
+        "quadrature_degree": default_quadrature_degree(degree, space.mesh.topology.cell_type),
         "extension_share": {name: common.extension_share(name) for name in cases},
         "median_seconds": median,
         "ratios": ratios,

@@ -150,7 +150,7 @@ def build_case(name: str, space, project: bool = True) -> Case:
     if name not in CASES:
         raise ValueError(f"unknown case {name!r}; expected one of {CASES}")
     degree = _compat.element_degree(space)
-    quadrature_degree = default_quadrature_degree(degree)
+    quadrature_degree = default_quadrature_degree(degree, space.mesh.topology.cell_type)
     elastic, mu, lam = material()
     u = state(space, STRETCH[name])
     bcs = [clamp_to_state(u)]

@@ -145,7 +145,7 @@ def run(cells: int, thickness_cells: int, steps: int, repeats: int) -> dict:
     machine = common.machine()
     mesh = cook_mesh(comm, cells, thickness_cells)
     space = _compat.vector_function_space(mesh, "Lagrange", 1)
-    quadrature_degree = default_quadrature_degree(1)
+    quadrature_degree = default_quadrature_degree(1, "tetrahedron")
     mu, lam = lame(YOUNGS_MODULUS, POISSON_RATIO)
     material = Material(NeoHookean(mu=mu, lam=lam), C2(common.C2_EPS))
     load = dolfinx.fem.Constant(mesh, 0.0)

@@ -44,9 +44,35 @@ class Material:
             raise TypeError(f"extension must be C1, C2, IFE or None, got {extension!r}")
         self.model = model
         self.extension = extension
-        extension_parameters = np.zeros(2) if extension is None else extension.parameters(model)
-        #: Flat parameter vector in kernel order: [μ, λ, ε, k].
-        self.parameters = np.concatenate([model.parameters, extension_parameters])
+        self.parameters  # noqa: B018 - checks the parameters now
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """Flat parameter vector in kernel order, [μ, λ, ε, k], with Constants read now."""
+        extension = self.extension
+        extension_parameters = np.zeros(2) if extension is None else extension.parameters(self.model)
+        return np.concatenate([self.model.parameters, extension_parameters])
+
+    def parameter_sources(self) -> dict:
+        """{position in :attr:`parameters`: the ``dolfinx.fem.Constant`` it is read from}."""
+        sources = dict(self.model.parameter_sources())
+        if self.extension is not None:
+            offset = len(self.model.parameters)
+            for index, constant in self.extension.parameter_sources().items():
+                sources[offset + index] = constant
+        return sources
+
+    def parameter_constants(self) -> list:
+        """The distinct Constants the parameters are read from, in parameter order."""
+        constants = []
+        for constant in self.parameter_sources().values():
+            if not any(constant is known for known in constants):
+                constants.append(constant)
+        return constants
+
+    def derived_stiffness(self) -> bool:
+        """The C1 stiffness is 20·E of μ and λ read from Constants (kernels recompute it)."""
+        return self.extension is not None and self.extension.derived_stiffness(self.model)
 
     @property
     def extension_id(self) -> int:

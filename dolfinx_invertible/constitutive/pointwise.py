@@ -1,7 +1,8 @@
 """Per-point energy density, stress and tangent from F, and their batch loops.
 
 These compiled functions are the single implementation behind :class:`~dolfinx_invertible.Material`
-and the DOLFINx cell kernels. A point's status is its region code (see
+and the DOLFINx cell kernels. The batch loops take the model and extension ids as compile-time
+literals (:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles its own chain. A point's status is its region code (see
 :func:`~dolfinx_invertible.constitutive.principal.principal_derivatives`).
 """
 
@@ -101,6 +102,8 @@ def point_tangent(F, model_id, extension_id, positive_only, params, project, wor
 @numba.njit(cache=True)
 def energy_batch(F, model_id, extension_id, positive_only, params, energy, region):
     """Energy and region of every F in the batch into ``energy`` and ``region``."""
+    numba.literally(model_id)
+    numba.literally(extension_id)
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         energy[n], region[n], _ = point_energy(
@@ -111,6 +114,8 @@ def energy_batch(F, model_id, extension_id, positive_only, params, energy, regio
 @numba.njit(cache=True)
 def stress_batch(F, model_id, extension_id, positive_only, params, P, region):
     """Stress and region of every F in the batch into ``P`` and ``region``."""
+    numba.literally(model_id)
+    numba.literally(extension_id)
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         _, region[n], _ = point_stress(
@@ -121,6 +126,8 @@ def stress_batch(F, model_id, extension_id, positive_only, params, P, region):
 @numba.njit(cache=True)
 def tangent_batch(F, model_id, extension_id, positive_only, params, project, C, region):
     """Tangent (projected if ``project``) and region of every F into ``C`` and ``region``."""
+    numba.literally(model_id)
+    numba.literally(extension_id)
     d = F.shape[1]
     work = ws.new_workspace(ws.stack_buffer())
     P = np.empty((d, d))
@@ -133,6 +140,8 @@ def tangent_batch(F, model_id, extension_id, positive_only, params, project, C, 
 @numba.njit(cache=True)
 def sigma_batch(sigma, model_id, extension_id, positive_only, params, order, energy, g, H, region):
     """Energy, gradient and Hessian in σ-space (up to ``order``) for canonical signed σ."""
+    numba.literally(model_id)
+    numba.literally(extension_id)
     d = sigma.shape[1]
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(sigma.shape[0]):

@@ -16,6 +16,7 @@ import dolfinx.fem.petsc
 import numpy as np
 import pytest
 
+import dolfinx_invertible as di
 from dolfinx_invertible import (
     C2,
     HyperelasticForms,
@@ -107,9 +108,14 @@ def test_solve_reports_svd_share():
 def test_kernel_requests_are_checked():
     from dolfinx_invertible.fem import kernels
 
+    nh, c2 = di.NeoHookean.model_id, di.C2.extension_id
     with pytest.raises(ValueError, match="kind must be one of"):
-        kernels.kernel_address("mass", 3)
+        kernels.kernel_address("mass", 3, nh, c2)
     with pytest.raises(ValueError, match="dimension 1"):
-        kernels.kernel_address("residual", 1)
-    # Compiled once per (kind, dimension): the same address every time.
-    assert kernels.kernel_address("residual", 3) == kernels.kernel_address("residual", 3)
+        kernels.kernel_address("residual", 1, nh, c2)
+    with pytest.raises(ValueError, match="unknown model id"):
+        kernels.kernel_address("residual", 3, 99, c2)
+    # Compiled once per (kind, dimension, model, extension): the same address every time.
+    assert kernels.kernel_address("residual", 3, nh, c2) == kernels.kernel_address(
+        "residual", 3, nh, c2
+    )
