@@ -22,10 +22,19 @@ from dolfinx_invertible.constitutive.models.registry import (
     model_gradient_slope,
 )
 
-__all__ = ["UNDEFINED_REGION", "principal_derivatives", "gradient_slope", "rotation_slope"]
+__all__ = [
+    "OVERFLOW_REGION",
+    "UNDEFINED_REGION",
+    "principal_derivatives",
+    "gradient_slope",
+    "rotation_slope",
+]
 
 # Region code of a point where the unextended energy is not defined (J ≤ 0 for Neo-Hookean).
 UNDEFINED_REGION = -1
+# Region code of a point whose stress or tangent overflows the largest double (finite but huge
+# F): its energy is +inf, and the kernels write zero stress and tangent for it.
+OVERFLOW_REGION = -2
 # Below this relative gap two singular values count as equal for the quotient aᵢⱼ.
 _EQUAL_GAP = 1e-6
 # |σᵢ + σⱼ| is bounded below by this (relative to max(1, |σ|)), keeping its sign: the energy has
@@ -90,9 +99,7 @@ def principal_derivatives(model_id, extension_id, positive_only, sigma, params, 
     energy is +inf and the derivatives are zero). The ids are compile-time literals
     (:mod:`~dolfinx_invertible.constitutive.literal`).
     """
-    return _extended_derivatives(
-        extension_id, model_id, positive_only, sigma, params, order, work
-    )
+    return _extended_derivatives(extension_id, model_id, positive_only, sigma, params, order, work)
 
 
 @numba.njit(cache=True)

@@ -35,7 +35,7 @@ def check_open_unit_interval(name: str, value: float) -> float:
 
 
 def is_scalar_constant(value) -> bool:
-    """A scalar DOLFINx ``Constant``, recognised without importing DOLFINx (duck typing).
+    """Tell a scalar DOLFINx ``Constant``, recognised without importing DOLFINx (duck typing).
 
     Anything with a ``value`` attribute that is a NumPy array of exactly one entry and is not
     itself a number or an array.

@@ -20,7 +20,7 @@ _SIMPLICES = ("interval", "triangle", "tetrahedron")
 
 
 def default_quadrature_degree(degree: int, cell_type) -> int:
-    """The quadrature degree that integrates the elastic forms of degree-``degree`` Lagrange.
+    """Return the quadrature degree that integrates the elastic forms of degree-k Lagrange.
 
     ``cell_type`` is the cell's name (``"tetrahedron"``, ...) or a DOLFINx/Basix cell-type enum.
     On simplices 2(k − 1), at least 1: exact for the stiffness of linear elasticity on affine

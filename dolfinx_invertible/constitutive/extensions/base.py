@@ -38,7 +38,7 @@ class Extension:
         return {} if self._eps.constant is None else {0: self._eps.constant}
 
     def derived_stiffness(self, model: Model) -> bool:
-        """k follows the model's current μ, λ (C1 with ``k=None`` and a Constant μ or λ)."""
+        """K follows the model's current μ, λ (C1 with ``k=None`` and a Constant μ or λ)."""
         return False
 
     def __repr__(self) -> str:

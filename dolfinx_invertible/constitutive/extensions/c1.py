@@ -17,8 +17,8 @@ import numpy as np
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.models.base import Model
-from dolfinx_invertible.constitutive.validation import Parameter
 from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
+from dolfinx_invertible.constitutive.validation import Parameter
 
 __all__ = ["C1", "derivatives", "c1_derivatives"]
 
@@ -207,7 +207,7 @@ class C1(Extension):
         return sources
 
     def derived_stiffness(self, model: Model) -> bool:
-        """k = 20·E follows μ and λ when either is read from a Constant."""
+        """K = 20·E follows μ and λ when either is read from a Constant."""
         return self._k is None and bool(model.parameter_sources())
 
     def __repr__(self) -> str:

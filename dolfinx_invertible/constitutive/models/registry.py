@@ -2,9 +2,10 @@
 
 :data:`MODELS` lists every model once; a model's id is its position there. The kernels take
 that integer id as a compile-time literal, so each compiled chain (cached on disk) holds the one
-model it serves: a scene compiles its own model, not all of them. Adding a model
-is a new module with ``constants``, ``tables`` and ``slopes`` (and, for a model written in
-invariants, ``invariant_terms`` and ``invariant_curvature``), its class in :data:`MODELS`; the dispatchers here look the module up. The tests check
+model it serves: a scene compiles its own model, not all of them. Adding a model is a new module
+with ``constants``, ``tables`` and ``slopes`` (and, for a model written in invariants,
+``invariant_terms`` and ``invariant_curvature``; ``USES_SECOND_INVARIANT = True`` if those read
+I₂) and its class in :data:`MODELS`: the dispatchers here look the module up. The tests check
 every registered model is dispatched to its own module.
 """
 
@@ -17,14 +18,6 @@ from numba.extending import overload
 
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.literal import force_literal, literal_id
-from dolfinx_invertible.constitutive.models import (
-    arap,
-    corotated,
-    fixed_corotated,
-    neo_hookean,
-    stable_neo_hookean,
-    stvk,
-)
 from dolfinx_invertible.constitutive.models.arap import ARAP
 from dolfinx_invertible.constitutive.models.base import Model
 from dolfinx_invertible.constitutive.models.corotated import Corotated
@@ -44,6 +37,7 @@ __all__ = [
     "model_gradient_slope",
     "model_invariant_terms",
     "model_invariant_curvature",
+    "model_uses_second_invariant",
 ]
 
 
@@ -174,6 +168,27 @@ def _model_invariant_curvature_compiled(model_id, I1, I2, J, d, params):
 
     def implementation(model_id, I1, I2, J, d, params):
         return curvature(I1, I2, J, d, params[0], params[1])
+
+    return implementation
+
+
+def model_uses_second_invariant(model_id):
+    """Tell whether the model's invariant form reads I₂ = tr C² (``USES_SECOND_INVARIANT``).
+
+    A compile-time constant in compiled code.
+    """
+    return bool(getattr(_MODULES[model_id], "USES_SECOND_INVARIANT", False))
+
+
+@overload(model_uses_second_invariant, prefer_literal=True)
+def _model_uses_second_invariant_compiled(model_id):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(model_uses_second_invariant)
+    flag = model_uses_second_invariant(value)
+
+    def implementation(model_id):
+        return flag
 
     return implementation
 

@@ -7,7 +7,12 @@ They share one quadrature loop and the point functions of
 * residual: ``A[a·d + i] = ∫_cell P_ij ∂φ_a/∂X_j dX``;
 * tangent: ``A[a·d + i, b·d + k] = ∫_cell ∂φ_a/∂X_j (dP/dF)_{ij,kl} ∂φ_b/∂X_l dX``,
 
-with F = I + ∇u. The coefficient array ``w`` holds the cell's displacement dofs node by node
+with F = I + ∇u. A point whose energy overflows (a finite but enormous F) adds +inf to the
+energy, so a line search backtracks from such a state; where its stress or tangent would
+overflow, the point adds nothing to the residual and the tangent (never NaN or inf) and +inf to
+the energy (:data:`~dolfinx_invertible.constitutive.principal.OVERFLOW_REGION`).
+
+The coefficient array ``w`` holds the cell's displacement dofs node by node
 with components interleaved; the constants ``c`` follow
 :mod:`~dolfinx_invertible.fem.kernels.constants`.
 

@@ -116,12 +116,12 @@ def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) 
 
 
 def compiled_kernels() -> int:
-    """Number of cell kernels this process has compiled or loaded (for tests of recompilation)."""
+    """Return how many cell kernels this process has compiled or loaded (tests count them)."""
     return len(_COMPILED)
 
 
 def default_materials():
-    """The :class:`~dolfinx_invertible.Material` of each entry of :data:`DEFAULT_MATERIALS`."""
+    """Return the :class:`~dolfinx_invertible.Material` of each :data:`DEFAULT_MATERIALS` entry."""
     from dolfinx_invertible import constitutive
 
     materials = []
