@@ -380,10 +380,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="Cook's membrane (UFL vs ours), the inverted cube (ours), or both (default)",
     )
     parser.add_argument(
-        "--inverted-cells", type=int, default=6, help="inverted cube: cells per edge (default 6)"
+        "--inverted-cells", type=int, default=4, help="inverted cube: cells per edge (default 4)"
     )
     parser.add_argument(
-        "--inverted-steps", type=int, default=10, help="inverted cube: time steps (default 10)"
+        "--inverted-steps", type=int, default=3, help="inverted cube: time steps (default 3)"
     )
     parser.add_argument(
         "--cells", type=int, default=16, help="cells along length and height (default 16)"

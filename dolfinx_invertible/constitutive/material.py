@@ -30,6 +30,13 @@ class Material:
     extension
         ``C1(...)``, ``C2(...)``, ``IFE(...)`` or ``None`` for the plain model.
 
+    Parameters of the model and the extension may be scalar ``dolfinx.fem.Constant`` objects:
+    every evaluation (and every assembly of the DOLFINx forms) reads their current ``value``, so
+    a parameter sweep changes ``mu.value`` and never recompiles. Each material compiles only its
+    own model's and extension's chain, once, into numba's disk cache. Finite F never gives NaN:
+    an energy that overflows is +inf, a stress or tangent that would overflow raises a
+    ``ValueError`` naming the points.
+
     Examples
     --------
     >>> mu, lam = lame(1e5, 0.3)
@@ -186,8 +193,10 @@ class Material:
         )
         # Chain rule through the sign flips of the canonicalisation.
         flips = np.where(batch * given < 0.0, -1.0, 1.0)
-        gradient *= flips
-        hessian *= flips[:, :, np.newaxis] * flips[:, np.newaxis, :]
+        if order >= 1:
+            gradient *= flips
+        if order >= 2:
+            hessian *= flips[:, :, np.newaxis] * flips[:, np.newaxis, :]
         return energy, gradient, hessian, region, single
 
     def energy_sigma(self, sigma: np.ndarray) -> np.ndarray:

@@ -96,6 +96,9 @@ class HyperelasticForms:
         The ``dolfinx.fem.Constant`` the kernels read: a header, the material parameters
         [μ, λ, ε, k] and the reference tables. :meth:`set_material` changes the parameters;
         nothing is recompiled.
+    parameter_constants
+        The user's scalar Constants the material reads parameters from, passed to DOLFINx after
+        :attr:`constants` (read at every assembly).
 
     Each form is built, and its kernel compiled for this dimension and element (or loaded from
     numba's disk cache), the first time it is used.

@@ -121,3 +121,15 @@ def test_kernel_requests_are_checked():
     assert kernels.kernel_address("residual", 3, nh, c2) == kernels.kernel_address(
         "residual", 3, nh, c2
     )
+
+
+def test_default_materials_are_listed_once_next_to_the_compilation():
+    from dolfinx_invertible.fem import kernels
+
+    materials = kernels.default_materials()
+    assert len(materials) == len(kernels.DEFAULT_MATERIALS)
+    described = {
+        (type(m.model).__name__, m.extension and type(m.extension).__name__) for m in materials
+    }
+    assert ("NeoHookean", "C2") in described and ("StableNeoHookean", None) in described
+    assert len(described) == len(materials)
