@@ -7,8 +7,9 @@ Subcommands:
   with their units and this scene's defaults); writes ``results/SCENE/`` (see
   :mod:`dolfinx_invertible.scenes.runner`);
 - ``report NAME``: a report (``report --help`` lists them);
-- ``compile``: compile the DOLFINx cell kernels into numba's disk cache, so that the first
-  assembly of a script does not pay for it (``make setup`` runs it);
+- ``compile``: compile the DOLFINx cell kernels of the default materials
+  (:data:`~dolfinx_invertible.fem.kernels.DEFAULT_MATERIALS`, 2D and 3D) into numba's disk
+  cache, so that the first assembly of a script does not pay for it (``make setup`` runs it);
 - ``bench NAME``: a benchmark (``bench --help`` lists them).
 """
 
@@ -35,12 +36,14 @@ def _compile(arguments: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     seconds = kernels.precompile()
-    details = ", ".join(
-        f"{kind} {dimension}D {value:.1f} s" for (kind, dimension), value in seconds.items()
-    )
+    per_material: dict[str, float] = {}
+    for (_, dimension, material), value in seconds.items():
+        key = f"{material} {dimension}D"
+        per_material[key] = per_material.get(key, 0.0) + value
+    details = "\n".join(f"  {key}: {value:.1f} s" for key, value in per_material.items())
     print(
-        f"kernels compiled or loaded from the cache in {time.perf_counter() - start:.1f} s "
-        f"({details})"
+        f"{len(seconds)} kernels compiled or loaded from the cache in "
+        f"{time.perf_counter() - start:.1f} s:\n{details}"
     )
     return 0
 
@@ -346,7 +349,10 @@ def parser() -> argparse.ArgumentParser:
     compile_parser = commands.add_parser(
         "compile",
         help="compile the cell kernels into numba's disk cache",
-        description="Compile the DOLFINx cell kernels (2D and 3D) into numba's disk cache.",
+        description=(
+            "Compile the DOLFINx cell kernels of the default materials (2D and 3D) into "
+            "numba's disk cache."
+        ),
     )
     compile_parser.set_defaults(handler=_compile)
 

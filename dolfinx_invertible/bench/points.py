@@ -40,62 +40,70 @@ def _svd_stage(F):
     return checksum
 
 
-@numba.njit(cache=True)
-def _principal_stage(F, model_id, extension_id, params, order):
-    work = ws.new_workspace(ws.stack_buffer())
-    checksum = 0.0
-    for n in range(F.shape[0]):
-        sigma = ws.vector(work, ws.SIGMA, 3)
-        polar_svd_point(F[n], ws.matrix(work, ws.U, 3), sigma, ws.matrix(work, ws.V, 3))
-        psi, _ = principal_derivatives(model_id, extension_id, False, sigma, params, order, work)
-        checksum += psi
-    return checksum
+_STAGE_FUNCTIONS: dict = {}
 
 
-@numba.njit(cache=True)
-def _point_stage(F, model_id, extension_id, params, kind, project):
-    work = ws.new_workspace(ws.stack_buffer())
-    P = np.empty((3, 3))
-    C = np.empty((9, 9))
-    checksum = 0.0
-    svd_points = 0
-    for n in range(F.shape[0]):
-        if kind == 0:
-            psi, _, through_svd = point_energy(F[n], model_id, extension_id, False, params, work)
-        elif kind == 1:
-            psi, _, through_svd = point_stress(F[n], model_id, extension_id, False, params, work, P)
-        else:
-            psi, _, through_svd = point_tangent(
-                F[n], model_id, extension_id, False, params, project, work, P, C
+# The ids are captured integers, literals inside the compiled closures as in the kernels (a
+# Python int argument would be retyped on every call).
+def _stage_functions(model_id: int, extension_id: int):
+    key = (model_id, extension_id)
+    if key in _STAGE_FUNCTIONS:
+        return _STAGE_FUNCTIONS[key]
+
+    def principal_stage(F, params, order):
+        work = ws.new_workspace(ws.stack_buffer())
+        checksum = 0.0
+        for n in range(F.shape[0]):
+            sigma = ws.vector(work, ws.SIGMA, 3)
+            polar_svd_point(F[n], ws.matrix(work, ws.U, 3), sigma, ws.matrix(work, ws.V, 3))
+            psi, _ = principal_derivatives(
+                model_id, extension_id, False, sigma, params, order, work
             )
-        checksum += psi
-        svd_points += through_svd
-    return checksum, svd_points
+            checksum += psi
+        return checksum
+
+    def point_stage(F, params, kind, project):
+        work = ws.new_workspace(ws.stack_buffer())
+        P = np.empty((3, 3))
+        C = np.empty((9, 9))
+        checksum = 0.0
+        svd_points = 0
+        for n in range(F.shape[0]):
+            if kind == 0:
+                psi, _, through_svd = point_energy(
+                    F[n], model_id, extension_id, False, params, work
+                )
+            elif kind == 1:
+                psi, _, through_svd = point_stress(
+                    F[n], model_id, extension_id, False, params, work, P
+                )
+            else:
+                psi, _, through_svd = point_tangent(
+                    F[n], model_id, extension_id, False, params, project, work, P, C
+                )
+            checksum += psi
+            svd_points += through_svd
+        return checksum, svd_points
+
+    functions = (numba.njit(cache=True)(principal_stage), numba.njit(cache=True)(point_stage))
+    _STAGE_FUNCTIONS[key] = functions
+    return functions
 
 
 def _stages(F: np.ndarray, material) -> dict:
-    model_id = material.model.model_id
-    extension_id = material.extension_id
+    principal_stage, point_stage = _stage_functions(material.model.model_id, material.extension_id)
     params = material.parameters
     # Orders as arrays' elements: run-time integers, as the kernels pass them.
     orders = np.arange(3)
     return {
         "SVD": lambda: _svd_stage(F),
-        "SVD + principal energy": lambda: _principal_stage(
-            F, model_id, extension_id, params, orders[0]
-        ),
-        "SVD + principal gradient": lambda: _principal_stage(
-            F, model_id, extension_id, params, orders[1]
-        ),
-        "SVD + principal Hessian": lambda: _principal_stage(
-            F, model_id, extension_id, params, orders[2]
-        ),
-        "point energy": lambda: _point_stage(F, model_id, extension_id, params, 0, False),
-        "point stress": lambda: _point_stage(F, model_id, extension_id, params, 1, False),
-        "point tangent, exact": lambda: _point_stage(F, model_id, extension_id, params, 2, False),
-        "point tangent, projected": lambda: _point_stage(
-            F, model_id, extension_id, params, 2, True
-        ),
+        "SVD + principal energy": lambda: principal_stage(F, params, orders[0]),
+        "SVD + principal gradient": lambda: principal_stage(F, params, orders[1]),
+        "SVD + principal Hessian": lambda: principal_stage(F, params, orders[2]),
+        "point energy": lambda: point_stage(F, params, 0, False),
+        "point stress": lambda: point_stage(F, params, 1, False),
+        "point tangent, exact": lambda: point_stage(F, params, 2, False),
+        "point tangent, projected": lambda: point_stage(F, params, 2, True),
     }
 
 

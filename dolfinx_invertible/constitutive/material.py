@@ -8,7 +8,7 @@ from dolfinx_invertible.constitutive import pointwise
 from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.extensions.registry import NONE_ID
 from dolfinx_invertible.constitutive.models.base import Model
-from dolfinx_invertible.constitutive.principal import UNDEFINED_REGION
+from dolfinx_invertible.constitutive.principal import OVERFLOW_REGION, UNDEFINED_REGION
 from dolfinx_invertible.constitutive.validation import as_deformation_gradients, as_singular_values
 
 __all__ = ["Material", "NoEnergyError"]
@@ -30,6 +30,13 @@ class Material:
     extension
         ``C1(...)``, ``C2(...)``, ``IFE(...)`` or ``None`` for the plain model.
 
+    Parameters of the model and the extension may be scalar ``dolfinx.fem.Constant`` objects:
+    every evaluation (and every assembly of the DOLFINx forms) reads their current ``value``, so
+    a parameter sweep changes ``mu.value`` and never recompiles. Each material compiles only its
+    own model's and extension's chain, once, into numba's disk cache. Finite F never gives NaN:
+    an energy that overflows is +inf, a stress or tangent that would overflow raises a
+    ``ValueError`` naming the points.
+
     Examples
     --------
     >>> mu, lam = lame(1e5, 0.3)
@@ -44,9 +51,37 @@ class Material:
             raise TypeError(f"extension must be C1, C2, IFE or None, got {extension!r}")
         self.model = model
         self.extension = extension
-        extension_parameters = np.zeros(2) if extension is None else extension.parameters(model)
-        #: Flat parameter vector in kernel order: [μ, λ, ε, k].
-        self.parameters = np.concatenate([model.parameters, extension_parameters])
+        self.parameters  # noqa: B018 - checks the parameters now
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """Flat parameter vector in kernel order, [μ, λ, ε, k], with Constants read now."""
+        extension = self.extension
+        extension_parameters = (
+            np.zeros(2) if extension is None else extension.parameters(self.model)
+        )
+        return np.concatenate([self.model.parameters, extension_parameters])
+
+    def parameter_sources(self) -> dict:
+        """{position in :attr:`parameters`: the ``dolfinx.fem.Constant`` it is read from}."""
+        sources = dict(self.model.parameter_sources())
+        if self.extension is not None:
+            offset = len(self.model.parameters)
+            for index, constant in self.extension.parameter_sources().items():
+                sources[offset + index] = constant
+        return sources
+
+    def parameter_constants(self) -> list:
+        """Return the distinct Constants the parameters are read from, in parameter order."""
+        constants = []
+        for constant in self.parameter_sources().values():
+            if not any(constant is known for known in constants):
+                constants.append(constant)
+        return constants
+
+    def derived_stiffness(self) -> bool:
+        """Tell whether the C1 stiffness is 20·E of μ, λ read from Constants (kernels follow)."""
+        return self.extension is not None and self.extension.derived_stiffness(self.model)
 
     @property
     def extension_id(self) -> int:
@@ -61,8 +96,8 @@ class Material:
     def __repr__(self) -> str:
         return f"Material({self.model!r}, extension={self.extension!r})"
 
-    def _ids(self):
-        return self.model.model_id, self.extension_id, self.positive_only, self.parameters
+    def _loop(self, kind: str):
+        return pointwise.batch(kind, self.model.model_id, self.extension_id)
 
     def _require_energy(self):
         if self.extension is not None and not self.extension.has_energy:
@@ -81,13 +116,33 @@ class Material:
                 "(C1 or C2) to evaluate inverted configurations."
             )
 
+    def _require_finite(self, region: np.ndarray, values: np.ndarray, quantity: str):
+        overflow = np.flatnonzero(region == OVERFLOW_REGION)
+        if len(overflow):
+            shown = ", ".join(str(int(i)) for i in overflow[:_MAX_REPORTED])
+            largest = float(np.abs(values[overflow]).max())
+            where = f"at {len(overflow)} points, first indices {shown}"
+            if largest >= 1.0:
+                raise ValueError(
+                    f"F too large: entries up to {largest:.3g} overflow the {quantity} (it "
+                    f"exceeds the largest double) {where}"
+                )
+            raise ValueError(
+                f"F too close to singular: det F is so small that the {quantity} overflows "
+                f"(exceeds the largest double) {where}"
+            )
+
     def energy(self, F: np.ndarray) -> np.ndarray:
-        """Energy density Ψ(F) for ``F`` of shape (n, d, d) -> (n,); +inf where undefined."""
+        """Energy density Ψ(F) for ``F`` of shape (n, d, d) -> (n,).
+
+        +inf where the plain model is undefined (J ≤ 0) and where the energy overflows (finite
+        but enormous F); never NaN for finite input.
+        """
         self._require_energy()
         batch, single = as_deformation_gradients(F)
         energy = np.empty(len(batch))
         region = np.empty(len(batch), dtype=np.int64)
-        pointwise.energy_batch(batch, *self._ids(), energy, region)
+        self._loop("energy")(batch, self.positive_only, self.parameters, energy, region)
         return energy[0] if single else energy
 
     def stress(self, F: np.ndarray) -> np.ndarray:
@@ -95,8 +150,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         stress = np.empty_like(batch)
         region = np.empty(len(batch), dtype=np.int64)
-        pointwise.stress_batch(batch, *self._ids(), stress, region)
+        self._loop("stress")(batch, self.positive_only, self.parameters, stress, region)
         self._require_defined(region, "stress")
+        self._require_finite(region, batch, "stress")
         return stress[0] if single else stress
 
     def tangent(self, F: np.ndarray, project: bool = True) -> np.ndarray:
@@ -109,8 +165,11 @@ class Material:
         d = batch.shape[1]
         tangent = np.empty((len(batch), d * d, d * d))
         region = np.empty(len(batch), dtype=np.int64)
-        pointwise.tangent_batch(batch, *self._ids(), bool(project), tangent, region)
+        self._loop("tangent")(
+            batch, self.positive_only, self.parameters, bool(project), tangent, region
+        )
         self._require_defined(region, "tangent")
+        self._require_finite(region, batch, "tangent")
         return tangent[0] if single else tangent
 
     def regions(self, F: np.ndarray) -> np.ndarray:
@@ -118,7 +177,7 @@ class Material:
         batch, single = as_deformation_gradients(F)
         energy = np.empty(len(batch))
         region = np.empty(len(batch), dtype=np.int64)
-        pointwise.energy_batch(batch, *self._ids(), energy, region)
+        self._loop("energy")(batch, self.positive_only, self.parameters, energy, region)
         return region[0] if single else region
 
     def _sigma_derivatives(self, sigma, order: int):
@@ -130,11 +189,15 @@ class Material:
         gradient = np.zeros((n, d))
         hessian = np.zeros((n, d, d))
         region = np.empty(n, dtype=np.int64)
-        pointwise.sigma_batch(batch, *self._ids(), order, energy, gradient, hessian, region)
+        self._loop("sigma")(
+            batch, self.positive_only, self.parameters, order, energy, gradient, hessian, region
+        )
         # Chain rule through the sign flips of the canonicalisation.
         flips = np.where(batch * given < 0.0, -1.0, 1.0)
-        gradient *= flips
-        hessian *= flips[:, :, np.newaxis] * flips[:, np.newaxis, :]
+        if order >= 1:
+            gradient *= flips
+        if order >= 2:
+            hessian *= flips[:, :, np.newaxis] * flips[:, np.newaxis, :]
         return energy, gradient, hessian, region, single
 
     def energy_sigma(self, sigma: np.ndarray) -> np.ndarray:
@@ -147,12 +210,14 @@ class Material:
         """∇Ψ̂ext(σ), shape (n, d): the principal stresses."""
         _, gradient, _, region, single = self._sigma_derivatives(sigma, 1)
         self._require_defined(region, "stress")
+        self._require_finite(region, np.atleast_2d(sigma), "stress")
         return gradient[0] if single else gradient
 
     def hessian_sigma(self, sigma: np.ndarray) -> np.ndarray:
         """∇²Ψ̂ext(σ), shape (n, d, d), unprojected."""
         _, _, hessian, region, single = self._sigma_derivatives(sigma, 2)
         self._require_defined(region, "tangent")
+        self._require_finite(region, np.atleast_2d(sigma), "tangent")
         return hessian[0] if single else hessian
 
 

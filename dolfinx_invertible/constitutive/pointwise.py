@@ -1,7 +1,9 @@
 """Per-point energy density, stress and tangent from F, and their batch loops.
 
 These compiled functions are the single implementation behind :class:`~dolfinx_invertible.Material`
-and the DOLFINx cell kernels. A point's status is its region code (see
+and the DOLFINx cell kernels. The model and extension ids are compile-time literals
+(:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles its own chain. A
+point's status is its region code (see
 :func:`~dolfinx_invertible.constitutive.principal.principal_derivatives`).
 """
 
@@ -15,8 +17,13 @@ from dolfinx_invertible.constitutive.invariants import (
     invariant_energy,
     invariant_stress,
     invariant_tangent,
+    invariants,
 )
-from dolfinx_invertible.constitutive.principal import UNDEFINED_REGION, principal_derivatives
+from dolfinx_invertible.constitutive.principal import (
+    OVERFLOW_REGION,
+    UNDEFINED_REGION,
+    principal_derivatives,
+)
 from dolfinx_invertible.constitutive.svd import polar_svd_point
 from dolfinx_invertible.constitutive.tangent import first_piola, stress_derivative
 
@@ -28,7 +35,13 @@ __all__ = [
     "stress_batch",
     "tangent_batch",
     "sigma_batch",
+    "batch",
 ]
+
+# Bounds of :func:`_extreme`.
+_SAFE_SQUARED_NORM = 1e50
+_SAFE_DETERMINANT = 1e-50
+_SAFE_PARAMETER = 1e100
 
 # Derivative orders as runtime integers: a literal argument would make numba compile the whole
 # call chain once per order value, tripling the cold compile time for no measurable speed.
@@ -51,51 +64,119 @@ def _through_svd(F, model_id, extension_id, positive_only, params, order, work):
 
 
 @numba.njit(cache=True)
+def _extreme(I1, J, params):
+    """F or the parameters so large (or J so small) that some intermediate may overflow.
+
+    Inside these bounds no model's energy, stress or tangent can reach 1e308 (the largest powers
+    are σ⁴ and 1/J², times a parameter); outside them the results are checked and a point whose
+    results are not finite is reported as overflowing. NaN-safe.
+    """
+    largest = max(abs(params[0]), abs(params[1]), abs(params[3]))
+    return not (
+        I1 < _SAFE_SQUARED_NORM and abs(J) > _SAFE_DETERMINANT and largest < _SAFE_PARAMETER
+    )
+
+
+@numba.njit(cache=True)
+def _overflowed(I1, J):
+    """|F|² or det F beyond the largest double: nothing about the point can be computed."""
+    return not (I1 < np.inf and abs(J) < np.inf)
+
+
+@numba.njit(cache=True)
+def _finite(M):
+    """All entries of the matrix finite."""
+    total = 0.0
+    for i in range(M.shape[0]):
+        row = 0.0
+        for j in range(M.shape[1]):
+            row += M[i, j] * 0.0
+        total += row
+    return total == 0.0
+
+
+@numba.njit(cache=True)
 def point_energy(F, model_id, extension_id, positive_only, params, work):
     """Return (Ψ(F), region, through_svd).
 
     ``work`` is a workspace buffer (see :mod:`~dolfinx_invertible.constitutive.workspace`);
-    ``through_svd`` says whether the SVD path was taken.
+    ``through_svd`` says whether the SVD path was taken. An energy that overflows is +inf.
     """
-    done, psi, region = invariant_energy(F, model_id, extension_id, positive_only, params)
-    if done:
-        return psi, region, False
-    psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _ENERGY, work)
-    return psi, region, True
+    I1, I2, J = invariants(F, model_id, extension_id)
+    if _overflowed(I1, J):
+        return np.inf, OVERFLOW_REGION, False
+    done, psi, region = invariant_energy(
+        F, I1, I2, J, model_id, extension_id, positive_only, params
+    )
+    through_svd = False
+    if not done:
+        psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _ENERGY, work)
+        through_svd = True
+    if not abs(psi) < np.inf:  # NaN (inf − inf) or ±inf: beyond the largest double
+        psi = np.inf
+    return psi, region, through_svd
 
 
 @numba.njit(cache=True)
 def point_stress(F, model_id, extension_id, positive_only, params, work, P):
-    """P(F) into ``P``; returns (Ψ(F), region, through_svd)."""
-    done, psi, region = invariant_stress(F, model_id, extension_id, positive_only, params, P)
-    if done:
-        return psi, region, False
-    psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _STRESS, work)
-    d = F.shape[0]
-    first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
-    return psi, region, True
+    """P(F) into ``P``; returns (Ψ(F), region, through_svd).
+
+    Where the stress overflows, P is zero, Ψ is +inf and the region :data:`OVERFLOW_REGION`.
+    """
+    I1, I2, J = invariants(F, model_id, extension_id)
+    if _overflowed(I1, J):
+        P[:, :] = 0.0
+        return np.inf, OVERFLOW_REGION, False
+    done, psi, region = invariant_stress(
+        F, I1, I2, J, model_id, extension_id, positive_only, params, P
+    )
+    through_svd = False
+    if not done:
+        psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _STRESS, work)
+        d = F.shape[0]
+        first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
+        through_svd = True
+    if not abs(psi) < np.inf:
+        psi = np.inf
+    if _extreme(I1, J, params) and not _finite(P):
+        P[:, :] = 0.0
+        return np.inf, OVERFLOW_REGION, through_svd
+    return psi, region, through_svd
 
 
 @numba.njit(cache=True)
 def point_tangent(F, model_id, extension_id, positive_only, params, project, work, P, C):
     """Write P(F) into ``P`` and dP/dF into ``C``; return (Ψ, region, through_svd).
 
-    The tangent is SPD-projected if ``project``.
+    The tangent is SPD-projected if ``project``. Where the stress or the tangent overflows, both
+    are zero, Ψ is +inf and the region :data:`OVERFLOW_REGION`.
     """
-    done, psi, region = invariant_tangent(
-        F, model_id, extension_id, positive_only, params, project, P, C
-    )
-    if done:
-        return psi, region, False
-    psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _TANGENT, work)
-    d = F.shape[0]
-    sigma = ws.vector(work, ws.SIGMA, d)
-    first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
-    if region == UNDEFINED_REGION:
+    I1, I2, J = invariants(F, model_id, extension_id)
+    if _overflowed(I1, J):
+        P[:, :] = 0.0
         C[:, :] = 0.0
-    else:
-        stress_derivative(model_id, region, sigma, params, work, project, C)
-    return psi, region, True
+        return np.inf, OVERFLOW_REGION, False
+    done, psi, region = invariant_tangent(
+        F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
+    )
+    through_svd = False
+    if not done:
+        psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _TANGENT, work)
+        d = F.shape[0]
+        sigma = ws.vector(work, ws.SIGMA, d)
+        first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
+        if region == UNDEFINED_REGION:
+            C[:, :] = 0.0
+        else:
+            stress_derivative(model_id, region, sigma, params, work, project, C)
+        through_svd = True
+    if not abs(psi) < np.inf:
+        psi = np.inf
+    if _extreme(I1, J, params) and not (_finite(P) and _finite(C)):
+        P[:, :] = 0.0
+        C[:, :] = 0.0
+        return np.inf, OVERFLOW_REGION, through_svd
+    return psi, region, through_svd
 
 
 @numba.njit(cache=True)
@@ -136,10 +217,67 @@ def sigma_batch(sigma, model_id, extension_id, positive_only, params, order, ene
     d = sigma.shape[1]
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(sigma.shape[0]):
-        energy[n], region[n] = principal_derivatives(
+        psi, region[n] = principal_derivatives(
             model_id, extension_id, positive_only, sigma[n], params, order, work
         )
+        energy[n] = psi if abs(psi) < np.inf else np.inf
         if order >= 1:
             g[n] = ws.vector(work, ws.G, d)
         if order >= 2:
             H[n] = ws.matrix(work, ws.H, d)
+        if order >= 1 and not (_finite(g[n : n + 1]) and (order < 2 or _finite(H[n]))):
+            energy[n] = np.inf
+            region[n] = OVERFLOW_REGION
+
+
+_BATCH_LOOPS = {
+    "energy": energy_batch,
+    "stress": stress_batch,
+    "tangent": tangent_batch,
+    "sigma": sigma_batch,
+}
+_BATCH_ENTRIES: dict[tuple[str, int, int], object] = {}
+
+
+# Each entry captures the ids as integers: inside it they are literals (numba types a closure's
+# integer cells as constants), and numba keys its disk cache on those values. A plain Python
+# int passed to a compiled loop would instead be retyped on every call.
+def _batch_entry(kind: str, model_id: int, extension_id: int):
+    if kind == "energy":
+
+        def entry(F, positive_only, params, energy, region):
+            energy_batch(F, model_id, extension_id, positive_only, params, energy, region)
+
+    elif kind == "stress":
+
+        def entry(F, positive_only, params, P, region):
+            stress_batch(F, model_id, extension_id, positive_only, params, P, region)
+
+    elif kind == "tangent":
+
+        def entry(F, positive_only, params, project, C, region):
+            tangent_batch(F, model_id, extension_id, positive_only, params, project, C, region)
+
+    else:
+
+        def entry(sigma, positive_only, params, order, energy, g, H, region):
+            sigma_batch(
+                sigma, model_id, extension_id, positive_only, params, order, energy, g, H, region
+            )
+
+    return numba.njit(cache=True)(entry)
+
+
+def batch(kind: str, model_id: int, extension_id: int):
+    """Return the compiled batch loop ``kind`` ("energy", "stress", "tangent", "sigma").
+
+    Its arguments are those of the loop of that name without the two ids, which are compiled
+    in (:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles its own chain,
+    once per process (or loads it from numba's disk cache).
+    """
+    if kind not in _BATCH_LOOPS:
+        raise ValueError(f"kind must be one of {tuple(_BATCH_LOOPS)}, got {kind!r}")
+    key = (kind, int(model_id), int(extension_id))
+    if key not in _BATCH_ENTRIES:
+        _BATCH_ENTRIES[key] = _batch_entry(*key)
+    return _BATCH_ENTRIES[key]

@@ -25,8 +25,18 @@ def _slope(t, c1, c2, c3):
 
 @numba.njit(cache=True)
 def _bracketed_root(lo, hi, c0, c1, c2, c3):
-    """Root in [lo, hi] where the cubic is monotone and goes from > 0 to ≤ 0."""
+    """Root in [lo, hi] where the cubic is monotone and goes from > 0 to ≤ 0.
+
+    Newton from the secant point of the bracket, bisection when Newton would leave it. A Newton
+    step below 1e-9 (relative) leaves an error of about its square: that step is the last.
+    """
+    value_lo = _value(lo, c0, c1, c2, c3)
+    value_hi = _value(hi, c0, c1, c2, c3)
     t = 0.5 * (lo + hi)
+    if value_lo - value_hi > 0.0:
+        secant = lo + (hi - lo) * value_lo / (value_lo - value_hi)
+        if lo < secant < hi:
+            t = secant
     for _ in range(100):
         value = _value(t, c0, c1, c2, c3)
         if value > 0.0:
@@ -34,11 +44,15 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
         else:
             hi = t
         slope = _slope(t, c1, c2, c3)
-        candidate = t - value / slope if slope < 0.0 else 0.5 * (lo + hi)
+        newton = slope < 0.0
+        candidate = t - value / slope if newton else 0.5 * (lo + hi)
         # Newton while it stays inside the bracket, bisection otherwise.
         if not (lo < candidate < hi):
             candidate = 0.5 * (lo + hi)
-        if abs(candidate - t) <= 1e-16 * max(t, 1e-300) or hi - lo <= 1e-17:
+            newton = False
+        step = abs(candidate - t)
+        size = max(t, 1e-300)
+        if (newton and step <= 1e-9 * size) or step <= 1e-16 * size or hi - lo <= 1e-17:
             return candidate
         t = candidate
     return t

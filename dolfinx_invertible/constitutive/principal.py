@@ -1,28 +1,40 @@
 """Energy, gradient and Hessian in principal-stretch (signed singular value) space.
 
 One dispatch on the extension id serves every kernel: the batch API, the σ-space API and the
-DOLFINx cell kernels all come through :func:`principal_derivatives`.
+DOLFINx cell kernels all come through :func:`principal_derivatives`. The dispatch is resolved at
+compile time (the ids are literals, :mod:`~dolfinx_invertible.constitutive.literal`): each
+registered extension's module provides ``derivatives``.
 """
 
 from __future__ import annotations
 
+import sys
+
 import numba
 import numpy as np
+from numba.extending import overload
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.extensions.c1 import c1_derivatives
-from dolfinx_invertible.constitutive.extensions.c2 import c2_derivatives
-from dolfinx_invertible.constitutive.extensions.ife import ife_derivatives
-from dolfinx_invertible.constitutive.extensions.registry import C1_ID, C2_ID, IFE_ID
+from dolfinx_invertible.constitutive.extensions.registry import EXTENSIONS
+from dolfinx_invertible.constitutive.literal import force_literal, literal_id
 from dolfinx_invertible.constitutive.models.registry import (
     model_derivatives_into,
     model_gradient_slope,
 )
 
-__all__ = ["UNDEFINED_REGION", "principal_derivatives", "gradient_slope", "rotation_slope"]
+__all__ = [
+    "OVERFLOW_REGION",
+    "UNDEFINED_REGION",
+    "principal_derivatives",
+    "gradient_slope",
+    "rotation_slope",
+]
 
 # Region code of a point where the unextended energy is not defined (J ≤ 0 for Neo-Hookean).
 UNDEFINED_REGION = -1
+# Region code of a point whose stress or tangent overflows the largest double (finite but huge
+# F): its energy is +inf, and the kernels write zero stress and tangent for it.
+OVERFLOW_REGION = -2
 # Below this relative gap two singular values count as equal for the quotient aᵢⱼ.
 _EQUAL_GAP = 1e-6
 # |σᵢ + σⱼ| is bounded below by this (relative to max(1, |σ|)), keeping its sign: the energy has
@@ -30,20 +42,7 @@ _EQUAL_GAP = 1e-6
 _KINK_GAP = 1e-8
 
 
-@numba.njit(cache=True)
-def principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work):
-    """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient and Hessian into the G, H slots.
-
-    Returns ``(energy, region)``: region 0 is the model itself, a positive value an extension
-    region, :data:`UNDEFINED_REGION` a point where the unextended model is undefined (then the
-    energy is +inf and the derivatives are zero).
-    """
-    if extension_id == C2_ID:
-        return c2_derivatives(model_id, sigma, params, order, work)
-    if extension_id == C1_ID:
-        return c1_derivatives(model_id, sigma, params, order, work)
-    if extension_id == IFE_ID:
-        return ife_derivatives(model_id, sigma, params, order, work)
+def _plain_derivatives(model_id, positive_only, sigma, params, order, work):
     d = sigma.shape[0]
     if positive_only:
         J = 1.0
@@ -54,6 +53,53 @@ def principal_derivatives(model_id, extension_id, positive_only, sigma, params, 
             ws.matrix(work, ws.H, d)[:] = 0.0
             return np.inf, UNDEFINED_REGION
     return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+
+
+_plain_derivatives_compiled = numba.njit(cache=True)(_plain_derivatives)
+
+
+def _extended_derivatives(extension_id, model_id, positive_only, sigma, params, order, work):
+    extension = EXTENSIONS[extension_id]
+    if extension is None:
+        return _plain_derivatives_compiled(model_id, positive_only, sigma, params, order, work)
+    module = sys.modules[extension.__module__]
+    return module.derivatives(model_id, sigma, params, order, work)
+
+
+@overload(_extended_derivatives, prefer_literal=True)
+def _extended_derivatives_compiled(
+    extension_id, model_id, positive_only, sigma, params, order, work
+):
+    # The extension resolved while typing: only the one in use is compiled.
+    value = literal_id(extension_id)
+    if value is None:
+        return force_literal(_extended_derivatives)
+    extension = EXTENSIONS[value]
+    if extension is None:
+        plain = _plain_derivatives_compiled
+
+        def without_extension(extension_id, model_id, positive_only, sigma, params, order, work):
+            return plain(model_id, positive_only, sigma, params, order, work)
+
+        return without_extension
+    derivatives = sys.modules[extension.__module__].derivatives
+
+    def implementation(extension_id, model_id, positive_only, sigma, params, order, work):
+        return derivatives(model_id, sigma, params, order, work)
+
+    return implementation
+
+
+@numba.njit(cache=True)
+def principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work):
+    """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient and Hessian into the G, H slots.
+
+    Returns ``(energy, region)``: region 0 is the model itself, a positive value an extension
+    region, :data:`UNDEFINED_REGION` a point where the unextended model is undefined (then the
+    energy is +inf and the derivatives are zero). The ids are compile-time literals
+    (:mod:`~dolfinx_invertible.constitutive.literal`).
+    """
+    return _extended_derivatives(extension_id, model_id, positive_only, sigma, params, order, work)
 
 
 @numba.njit(cache=True)

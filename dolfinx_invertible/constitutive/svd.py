@@ -21,6 +21,10 @@ __all__ = ["polar_svd", "polar_svd_point"]
 # Columns whose cosine is below this count as orthogonal (a few ulps).
 _ORTHOGONALITY_TOLERANCE = 1e-15
 _MAX_SWEEPS = 12
+# Below this |γ/(β − α)| a rotation takes the small-angle formulas (truncation error 2τ⁴ < 1e-17).
+_SMALL_ANGLE = 5e-5
+# A sweep whose rotations all have |tan θ| below this leaves cosines of round-off size.
+_CONVERGED_TANGENT = 1e-8
 # A column this much shorter than the longest carries no direction information.
 _RANK_TOLERANCE = 1e-13
 
@@ -48,25 +52,35 @@ def _dot(x, y):
 def _jacobi_pair(wp, wq, vp, vq):
     """Rotate columns p, q of W (and of V alongside) so that they become orthogonal.
 
-    Columns are tuples so that the whole iteration stays in registers.
+    Columns are tuples so that the whole iteration stays in registers. Returns the new columns
+    and |tan θ| of the rotation (0 when the pair was already orthogonal).
     """
     alpha = _dot(wp, wp)
     beta = _dot(wq, wq)
     gamma = _dot(wp, wq)
     # Squared test: no square root on the (frequent) converged path.
     if gamma * gamma <= _ORTHOGONALITY_TOLERANCE**2 * (alpha * beta):
-        return wp, wq, vp, vq, False
-    zeta = (beta - alpha) / (2.0 * gamma)
-    t = 1.0 / (abs(zeta) + np.sqrt(1.0 + zeta * zeta))
-    if zeta < 0.0:
-        t = -t
-    c = 1.0 / np.sqrt(1.0 + t * t)
+        return wp, wq, vp, vq, 0.0
+    difference = beta - alpha
+    if abs(gamma) < _SMALL_ANGLE * abs(difference):
+        # Small angle (the last sweeps): t = τ − τ³ + O(τ⁵) with τ = γ/(β − α) and
+        # c = 1 − t²/2 + O(t⁴), both exact to round-off here; one division instead of the
+        # chain of two square roots and three divisions.
+        tau = gamma / difference
+        t = tau * (1.0 - tau * tau)
+        c = 1.0 - 0.5 * t * t
+    else:
+        zeta = difference / (2.0 * gamma)
+        t = 1.0 / (abs(zeta) + np.sqrt(1.0 + zeta * zeta))
+        if zeta < 0.0:
+            t = -t
+        c = 1.0 / np.sqrt(1.0 + t * t)
     s = c * t
     wp_new = (c * wp[0] - s * wq[0], c * wp[1] - s * wq[1], c * wp[2] - s * wq[2])
     wq_new = (s * wp[0] + c * wq[0], s * wp[1] + c * wq[1], s * wp[2] + c * wq[2])
     vp_new = (c * vp[0] - s * vq[0], c * vp[1] - s * vq[1], c * vp[2] - s * vq[2])
     vq_new = (s * vp[0] + c * vq[0], s * vp[1] + c * vq[1], s * vp[2] + c * vq[2])
-    return wp_new, wq_new, vp_new, vq_new, True
+    return wp_new, wq_new, vp_new, vq_new, abs(t)
 
 
 @numba.njit(cache=True)
@@ -96,10 +110,12 @@ def _polar_svd_3(F, U, sigma, V):
     v1 = (0.0, 1.0, 0.0)
     v2 = (0.0, 0.0, 1.0)
     for _ in range(_MAX_SWEEPS):
-        w0, w1, v0, v1, r01 = _jacobi_pair(w0, w1, v0, v1)
-        w0, w2, v0, v2, r02 = _jacobi_pair(w0, w2, v0, v2)
-        w1, w2, v1, v2, r12 = _jacobi_pair(w1, w2, v1, v2)
-        if not (r01 or r02 or r12):
+        w0, w1, v0, v1, t01 = _jacobi_pair(w0, w1, v0, v1)
+        w0, w2, v0, v2, t02 = _jacobi_pair(w0, w2, v0, v2)
+        w1, w2, v1, v2, t12 = _jacobi_pair(w1, w2, v1, v2)
+        # Each rotation zeroes its pair's cosine; the later ones of a sweep bring back at most
+        # the product of two tangents: below 1e-8 each, the sweep has converged to round-off.
+        if max(t01, t02, t12) < _CONVERGED_TANGENT:
             break
 
     # Sort columns by decreasing length; each swap negates one column so det V stays +1.
@@ -113,13 +129,15 @@ def _polar_svd_3(F, U, sigma, V):
 
     # W = F V / scale has orthogonal columns sigma_i u_i; build U as a rotation from them.
     first = np.sqrt(n0)
-    u0 = (w0[0] / first, w0[1] / first, w0[2] / first)
+    inverse_first = 1.0 / first
+    u0 = (w0[0] * inverse_first, w0[1] * inverse_first, w0[2] * inverse_first)
     # Re-orthogonalise the second column against the first before normalising it.
     projection = _dot(w1, u0)
     x = (w1[0] - projection * u0[0], w1[1] - projection * u0[1], w1[2] - projection * u0[2])
     second = np.sqrt(_dot(x, x))
     if second > _RANK_TOLERANCE * first:
-        u1 = (x[0] / second, x[1] / second, x[2] / second)
+        inverse_second = 1.0 / second
+        u1 = (x[0] * inverse_second, x[1] * inverse_second, x[2] * inverse_second)
     else:
         u1 = _unit_perpendicular(u0[0], u0[1], u0[2])
     u2 = (

@@ -20,7 +20,7 @@ import numpy as np
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.principal import gradient_slope, rotation_slope
 
-__all__ = ["first_piola", "stress_derivative", "clamp_symmetric"]
+__all__ = ["clamp_symmetric", "first_piola", "project_symmetric_3", "stress_derivative"]
 
 _MAX_EIGEN_SWEEPS = 30
 
@@ -58,6 +58,68 @@ def _is_positive_definite(A):
 
 
 @numba.njit(cache=True)
+def _rotation(a_pp, a_qq, a_pq):
+    """(c, s, t) of the Jacobi rotation that zeroes a_pq of a symmetric matrix (a_pq ≠ 0).
+
+    t = tan θ is the smaller root of t² + 2ζt − 1 = 0, ζ = (a_qq − a_pp)/(2 a_pq), written with
+    one square root and one division; then c = 1/√(1 + t²), s = t c.
+    """
+    h = a_qq - a_pp
+    t = 2.0 * a_pq / (abs(h) + np.sqrt(h * h + 4.0 * a_pq * a_pq))
+    if h < 0.0:
+        t = -t
+    c = 1.0 / np.sqrt(1.0 + t * t)
+    return c, t * c, t
+
+
+@numba.njit(cache=True)
+def project_symmetric_3(A):
+    """Replace the symmetric 3×3 ``A`` in place by its projection onto the PSD cone.
+
+    Cyclic Jacobi on scalars (no array traffic inside the sweeps) until the off-diagonal part
+    is below 1e-12 of the diagonal (dropping it then changes the result by as much: the
+    projection is Lipschitz), then the eigenvalues clamped at zero.
+    """
+    a00, a11, a22 = A[0, 0], A[1, 1], A[2, 2]
+    a01, a02, a12 = 0.5 * (A[0, 1] + A[1, 0]), 0.5 * (A[0, 2] + A[2, 0]), 0.5 * (A[1, 2] + A[2, 1])
+    v00, v01, v02 = 1.0, 0.0, 0.0
+    v10, v11, v12 = 0.0, 1.0, 0.0
+    v20, v21, v22 = 0.0, 0.0, 1.0
+    for _ in range(_MAX_EIGEN_SWEEPS):
+        off = a01 * a01 + a02 * a02 + a12 * a12
+        if off <= 1e-24 * (a00 * a00 + a11 * a11 + a22 * a22) or off == 0.0:
+            break
+        if a01 != 0.0:  # (p, q, r) = (0, 1, 2)
+            c, s, t = _rotation(a00, a11, a01)
+            a00, a11, a01 = a00 - t * a01, a11 + t * a01, 0.0
+            a02, a12 = c * a02 - s * a12, s * a02 + c * a12
+            v00, v01 = c * v00 - s * v01, s * v00 + c * v01
+            v10, v11 = c * v10 - s * v11, s * v10 + c * v11
+            v20, v21 = c * v20 - s * v21, s * v20 + c * v21
+        if a02 != 0.0:  # (0, 2, 1)
+            c, s, t = _rotation(a00, a22, a02)
+            a00, a22, a02 = a00 - t * a02, a22 + t * a02, 0.0
+            a01, a12 = c * a01 - s * a12, s * a01 + c * a12
+            v00, v02 = c * v00 - s * v02, s * v00 + c * v02
+            v10, v12 = c * v10 - s * v12, s * v10 + c * v12
+            v20, v22 = c * v20 - s * v22, s * v20 + c * v22
+        if a12 != 0.0:  # (1, 2, 0)
+            c, s, t = _rotation(a11, a22, a12)
+            a11, a22, a12 = a11 - t * a12, a22 + t * a12, 0.0
+            a01, a02 = c * a01 - s * a02, s * a01 + c * a02
+            v01, v02 = c * v01 - s * v02, s * v01 + c * v02
+            v11, v12 = c * v11 - s * v12, s * v11 + c * v12
+            v21, v22 = c * v21 - s * v22, s * v21 + c * v22
+    e0, e1, e2 = max(a00, 0.0), max(a11, 0.0), max(a22, 0.0)
+    A[0, 0] = v00 * e0 * v00 + v01 * e1 * v01 + v02 * e2 * v02
+    A[1, 1] = v10 * e0 * v10 + v11 * e1 * v11 + v12 * e2 * v12
+    A[2, 2] = v20 * e0 * v20 + v21 * e1 * v21 + v22 * e2 * v22
+    A[0, 1] = A[1, 0] = v00 * e0 * v10 + v01 * e1 * v11 + v02 * e2 * v12
+    A[0, 2] = A[2, 0] = v00 * e0 * v20 + v01 * e1 * v21 + v02 * e2 * v22
+    A[1, 2] = A[2, 1] = v10 * e0 * v20 + v11 * e1 * v21 + v12 * e2 * v22
+
+
+@numba.njit(cache=True)
 def clamp_symmetric(A, eigenvalues, eigenvectors):
     """Replace symmetric ``A`` in place by its projection onto the PSD cone (cyclic Jacobi)."""
     if A.shape[0] == 3:
@@ -72,6 +134,9 @@ def _specialised_clamp_symmetric(d: int):
     @numba.njit(cache=True)
     def clamp(A, eigenvalues, eigenvectors):
         if _is_positive_definite(A):
+            return
+        if d == 3:
+            project_symmetric_3(A)
             return
         for i in range(d):
             for j in range(d):

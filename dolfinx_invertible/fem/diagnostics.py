@@ -100,7 +100,9 @@ def cell_diagnostics(
             f"u must be a displacement with {dimension} components, got value shape {u.ufl_shape}"
         )
     if quadrature_degree is None:
-        quadrature_degree = default_quadrature_degree(_compat.element_degree(u.function_space))
+        quadrature_degree = default_quadrature_degree(
+            _compat.element_degree(u.function_space), mesh.topology.cell_type
+        )
     elif int(quadrature_degree) != quadrature_degree or quadrature_degree < 0:
         raise ValueError(f"quadrature_degree must be an integer >= 0, got {quadrature_degree!r}")
 

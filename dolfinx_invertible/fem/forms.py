@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import basix
 import dolfinx
+import numpy as np
 
 from dolfinx_invertible import _compat
 from dolfinx_invertible.constitutive.material import Material
@@ -15,9 +16,25 @@ _SUPPORTED_CELLS = ("triangle", "tetrahedron", "quadrilateral", "hexahedron")
 _SUPPORTED_DEGREES = (1, 2)
 
 
-def default_quadrature_degree(degree: int) -> int:
-    """2(k − 1), at least 1: exact for the stiffness of linear elasticity on affine simplices."""
-    return max(1, 2 * (degree - 1))
+_SIMPLICES = ("interval", "triangle", "tetrahedron")
+
+
+def default_quadrature_degree(degree: int, cell_type) -> int:
+    """Return the quadrature degree that integrates the elastic forms of degree-k Lagrange.
+
+    ``cell_type`` is the cell's name (``"tetrahedron"``, ...) or a DOLFINx/Basix cell-type enum.
+    On simplices 2(k − 1), at least 1: exact for the stiffness of linear elasticity on affine
+    cells. On quadrilaterals and hexahedra 2k: the gradients of Q_k have degree k in the other
+    directions, and fewer points leave hourglass modes (one point on a P1 hexahedron gives a
+    singular tangent). The forms, the cell diagnostics and the inversion-free step limit all take
+    their default from here.
+    """
+    name = getattr(cell_type, "name", cell_type)
+    if name not in _SIMPLICES + ("quadrilateral", "hexahedron"):
+        raise ValueError(f"no default quadrature degree for cell type {cell_type!r}")
+    if name in _SIMPLICES:
+        return max(1, 2 * (degree - 1))
+    return 2 * degree
 
 
 def _check_space(u) -> tuple[str, int, int]:
@@ -50,12 +67,19 @@ class HyperelasticForms:
     Parameters
     ----------
     u
-        Displacement, a ``dolfinx.fem.Function`` on a vector Lagrange space (P1 or P2) with one
+        Displacement, a ``dolfinx.fem.Function`` on a vector Lagrange space of degree 1 or 2
+        (P1, P2 on triangles and tetrahedra, Q1, Q2 on quadrilaterals and hexahedra) with one
         component per space dimension; 2D means plane strain.
     material
-        The :class:`~dolfinx_invertible.Material`.
+        The :class:`~dolfinx_invertible.Material`. Parameters given as scalar
+        ``dolfinx.fem.Constant`` are read at every assembly (set ``mu.value`` between solves,
+        as in a UFL form); nothing is recompiled.
     quadrature_degree
-        Degree of the cell quadrature rule; default 2(k − 1), at least 1.
+        Degree of the cell quadrature rule (Basix's rule of that degree on the reference cell).
+        Default (:func:`default_quadrature_degree`): 2(k − 1), at least 1, on triangles and
+        tetrahedra; 2k on quadrilaterals and hexahedra, whose gradients need it (one point on a
+        P1 hexahedron would leave hourglass modes and a singular tangent). A higher degree
+        costs one evaluation of the material per extra point.
     project
         Use the SPD-projected tangent (default) or the exact derivative of the residual.
 
@@ -72,6 +96,9 @@ class HyperelasticForms:
         The ``dolfinx.fem.Constant`` the kernels read: a header, the material parameters
         [μ, λ, ε, k] and the reference tables. :meth:`set_material` changes the parameters;
         nothing is recompiled.
+    parameter_constants
+        The user's scalar Constants the material reads parameters from, passed to DOLFINx after
+        :attr:`constants` (read at every assembly).
 
     Each form is built, and its kernel compiled for this dimension and element (or loaded from
     numba's disk cache), the first time it is used.
@@ -89,7 +116,7 @@ class HyperelasticForms:
             raise TypeError(f"material must be a dolfinx_invertible.Material, got {material!r}")
         cell, degree, gdim = _check_space(u)
         if quadrature_degree is None:
-            quadrature_degree = default_quadrature_degree(degree)
+            quadrature_degree = default_quadrature_degree(degree, cell)
         if int(quadrature_degree) != quadrature_degree or quadrature_degree < 0:
             raise ValueError(f"quadrature_degree must be an integer >= 0, got {quadrature_degree}")
         self.u = u
@@ -105,19 +132,49 @@ class HyperelasticForms:
             element, geometry_element, self.quadrature_degree
         )
         self.counters = kernels.counter_row()
+        # The user's Constants the parameters are read from, passed to DOLFINx after ours.
+        self.parameter_constants = list(material.parameter_constants())
         self.constants = dolfinx.fem.Constant(
-            mesh, kernels.pack_constants(self.tables, gdim, material, self.project, self.counters)
+            mesh,
+            kernels.pack_constants(
+                self.tables,
+                gdim,
+                material,
+                self.project,
+                self.counters,
+                sources=self._sources(material),
+                user_constants=len(self.parameter_constants),
+            ),
         )
         self._forms: dict[str, object] = {}
+
+    def _sources(self, material: Material):
+        """Where the kernels read each parameter: an offset into the user Constants, or not."""
+        sources = np.full(kernels.PARAMETER_COUNT, kernels.NO_SOURCE)
+        for index, constant in material.parameter_sources().items():
+            position = next(
+                (k for k, known in enumerate(self.parameter_constants) if known is constant), None
+            )
+            if position is None:
+                raise ValueError(
+                    f"{material!r} reads a Constant these forms were not built with; build new "
+                    "forms for it"
+                )
+            sources[index] = position
+        if material.derived_stiffness():
+            sources[kernels.PARAMETER_COUNT - 1] = kernels.DERIVED_STIFFNESS
+        return sources
 
     def _form(self, kind: str, spaces: list):
         # Built, and its kernel compiled, on first use only: a scene without a line search or an
         # energy report never compiles the energy kernel.
         if kind not in self._forms:
             mesh = self.u.function_space.mesh
-            address = kernels.kernel_address(kind, mesh.geometry.dim)
+            address = kernels.kernel_address(
+                kind, mesh.geometry.dim, self.material.model.model_id, self.material.extension_id
+            )
             self._forms[kind] = _compat.custom_form(
-                spaces, address, [self.u], [self.constants], mesh
+                spaces, address, [self.u], [self.constants, *self.parameter_constants], mesh
             )
         return self._forms[kind]
 
@@ -159,7 +216,8 @@ class HyperelasticForms:
     def set_material(self, material: Material) -> None:
         """Switch to another material of the same kind (model and extension type).
 
-        Only the parameter values change, so nothing is recompiled.
+        Only the parameter values change, so nothing is recompiled. Parameters the new material
+        reads from Constants must read Constants these forms were built with.
         """
         same_kind = (
             material.model.model_id == self.material.model.model_id
@@ -170,6 +228,10 @@ class HyperelasticForms:
             raise ValueError(
                 f"{material!r} is not of the same kind as {self.material!r}; build new forms"
             )
+        sources = self._sources(material)
         start = kernels.PARAMETERS_START
-        self.constants.value[start : start + len(material.parameters)] = material.parameters
+        parameters = material.parameters
+        self.constants.value[start : start + len(parameters)] = parameters
+        slot = kernels.PARAMETER_SOURCES_SLOT
+        self.constants.value[slot : slot + kernels.PARAMETER_COUNT] = sources
         self.material = material

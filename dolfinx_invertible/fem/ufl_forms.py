@@ -62,7 +62,9 @@ class UFLNeoHookeanForms:
         from dolfinx_invertible.fem.forms import default_quadrature_degree
 
         if quadrature_degree is None:
-            quadrature_degree = default_quadrature_degree(_compat.element_degree(u.function_space))
+            quadrature_degree = default_quadrature_degree(
+                _compat.element_degree(u.function_space), u.function_space.mesh.topology.cell_type
+            )
         self.u = u
         self.material = material
         self.quadrature_degree = int(quadrature_degree)

@@ -111,7 +111,9 @@ class InversionFreeStep:
         self.direction = dolfinx.fem.Function(space)
         mesh = space.mesh
         if quadrature_degree is None:
-            quadrature_degree = default_quadrature_degree(_compat.element_degree(space))
+            quadrature_degree = default_quadrature_degree(
+                _compat.element_degree(space), mesh.topology.cell_type
+            )
         cell_type = _compat.basix_element(space).cell_type
         points, _ = basix.make_quadrature(cell_type, quadrature_degree)
         self.dimension = mesh.geometry.dim

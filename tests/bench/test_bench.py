@@ -29,13 +29,14 @@ def test_assembly_report_has_every_case_and_the_newton_step():
     for mesh in report["meshes"].values():
         assert set(mesh["ratios"]) == set(OPERATIONS)
         for operation in OPERATIONS:
-            assert set(mesh["ratios"][operation]) == {"b/a", "c/a", "c/d"}
+            assert set(mesh["ratios"][operation]) == {"b/a", "r/a", "c/a", "c/d"}
         assert mesh["ratios"]["newton_step"]["c/d"] is None  # no Newton step of a zero matrix
         assert mesh["median_seconds"]["d_zero"]["newton_step"] is None
-        for name in ("a_ufl", "b_fast", "c_svd"):
+        for name in ("a_ufl", "b_fast", "b_random", "c_svd"):
             assert mesh["krylov_iterations"][name]["converged"]
             assert mesh["median_seconds"][name]["newton_step"] > 0.0
         assert mesh["extension_share"]["b_fast"] == 0.0
+        assert mesh["extension_share"]["b_random"] == 0.0
         assert mesh["extension_share"]["c_svd"] == 1.0
     assert bench_assembly.table(report)
 
@@ -52,6 +53,16 @@ def test_solve_routes_agree():
         assert len(route["all_seconds"]) == 1
     assert report["ratio_ours_over_ufl"] > 0.0
     assert bench_solve.table(report)
+
+
+@pytest.mark.mpi
+def test_inverted_scene_runs_through_the_extension():
+    report = bench_solve.run_inverted(cells=2, steps=2, repeats=1)
+    json.dumps(report)
+    assert report["initial_inverted_cells"] > 0
+    assert report["newton_iterations"] >= report["time_steps"] == 2
+    assert 0.0 < report["svd_share"]["residual"] <= 1.0
+    assert bench_solve.inverted_table(report)
 
 
 @pytest.mark.mpi

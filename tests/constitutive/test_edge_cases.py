@@ -122,3 +122,56 @@ def test_plain_neohookean_inverted(rng, d):
             m.stress(F[k : k + 1])
         with pytest.raises(ValueError, match="J <= 0"):
             m.tangent(F[k : k + 1])
+
+
+OVERFLOW_SCALES = (1e150, 1e200, 1e250, 1e300)
+
+
+def overflow_F(rng, d):
+    """Identity, a stretch, a rotated random F and an inverted one, each at every huge scale."""
+    base = np.concatenate(
+        [
+            np.eye(d)[None],
+            np.diag(np.linspace(2.0, 0.5, d))[None],
+            matrices_with_sigma(rng, np.linspace(1.5, 0.7, d)[None]),
+            matrices_with_sigma(rng, np.concatenate([np.ones(d - 1), [-0.5]])[None]),
+        ]
+    )
+    return np.concatenate([base * scale for scale in OVERFLOW_SCALES])
+
+
+@pytest.mark.parametrize("d", DIMS)
+@pytest.mark.parametrize("ext", EXTENSIONS)
+@pytest.mark.parametrize("model", MODEL_NAMES)
+def test_huge_F_gives_no_nan(rng, model, ext, d):
+    """Finite F of 1e150 to 1e300: energy finite or +inf; stress and tangent finite or a
+    ValueError naming the points ("F too large"); never NaN."""
+    F = overflow_F(rng, d)
+    m = make_material(model, ext)
+    if ext != "IFE":
+        energy = m.energy(F)
+        assert not np.any(np.isnan(energy)), energy
+        assert np.all(np.isfinite(energy) | np.isposinf(energy)), energy
+    defined = np.ones(len(F), dtype=bool)
+    if model == "NeoHookean" and ext is None:
+        defined = np.linalg.det(F / np.abs(F).max(axis=(1, 2), keepdims=True)) > 0
+    for evaluate in (m.stress, lambda G: m.tangent(G, project=False), m.tangent):
+        for k in np.flatnonzero(defined):
+            try:
+                value = evaluate(F[k : k + 1])
+            except ValueError as error:
+                assert "F too large" in str(error) and "first indices 0" in str(error), error
+            else:
+                assert np.all(np.isfinite(value)), (model, ext, k, value)
+
+
+def test_overflow_error_names_the_points(rng):
+    m = make_material("NeoHookean", "C2")
+    F = np.concatenate([np.eye(3)[None] * 1.1, np.eye(3)[None] * 1e200, np.eye(3)[None]])
+    with pytest.raises(ValueError, match=r"F too large: entries up to 1e\+200 .* first indices 1"):
+        m.stress(F)
+    with pytest.raises(ValueError, match="first indices 1"):
+        m.tangent(F)
+    energy = m.energy(F)
+    assert np.isfinite(energy[0]) and np.isposinf(energy[1]) and energy[2] == 0.0
+    assert np.isposinf(m.energy(1e200 * np.eye(3)))

@@ -110,3 +110,47 @@ def test_projection_near_identity_general(rng, model, d):
     spd = min_eig_rel(T0) > 1e-10
     assert spd.sum() >= 1
     assert_rel_close(T1[spd], T0[spd], 1e-10, MU + LAM, f"{model} {d}D near identity")
+
+
+def _fast_path_tangent(material):
+    """A compiled loop over point_tangent that also reports which points took the SVD."""
+    import numba
+
+    from dolfinx_invertible.constitutive import workspace as ws
+    from dolfinx_invertible.constitutive.pointwise import point_tangent
+
+    model_id, extension_id = material.model.model_id, material.extension_id
+
+    def loop(F, params, positive_only, C, through_svd):
+        work = ws.new_workspace(ws.stack_buffer())
+        P = np.empty((F.shape[1], F.shape[1]))
+        for n in range(F.shape[0]):
+            _, _, through_svd[n] = point_tangent(
+                F[n], model_id, extension_id, positive_only, params, True, work, P, C[n]
+            )
+
+    return numba.njit(loop)
+
+
+@pytest.mark.parametrize("d", DIMS)
+@pytest.mark.parametrize("model", ["NeoHookean", "StableNeoHookean"])
+def test_near_rest_projection_skips_the_svd(rng, model, d):
+    """Near rest the exact tangent is indefinite only in its twist (rotational) modes, under
+    compressive stress, or merely semidefinite at P = 0. The fast path projects that block
+    without an SVD and accepts the result by a tolerance-aware factorisation: it must equal
+    the Frobenius-nearest positive semidefinite matrix (eigenvalues of the exact tangent
+    clamped at 0) and take the SVD for none of the points."""
+    n = 200
+    F = np.eye(d) + 0.01 * rng.standard_normal((n, d, d))
+    F = np.concatenate([F, matrices_with_sigma(rng, np.ones((20, d)))])  # P = 0 exactly
+    m = make_material(model, "C2")
+    exact = m.tangent(F, project=False)
+    w, Q = np.linalg.eigh(exact)
+    nearest = np.einsum("nij,nj,nkj->nik", Q, np.maximum(w, 0.0), Q)
+    assert np.mean(w[:, 0] < -1e-8 * np.abs(w).max(axis=1)) > 0.2  # many are indefinite
+    projected = np.empty_like(exact)
+    through_svd = np.zeros(len(F), dtype=np.bool_)
+    _fast_path_tangent(m)(F, m.parameters, m.positive_only, projected, through_svd)
+    assert not through_svd.any(), np.flatnonzero(through_svd)
+    assert_rel_close(projected, nearest, 1e-12, MU + LAM, f"{model} {d}D fast projection")
+    assert_rel_close(m.tangent(F, project=True), nearest, 1e-12, MU + LAM, "batch API")

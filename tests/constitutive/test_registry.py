@@ -1,6 +1,7 @@
 """The registries are the one source of ids: every registered model and extension is dispatched
 to its own module, and the batch API needs no DOLFINx."""
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -26,6 +27,17 @@ def test_ids_are_positions():
     assert len({model.__module__ for model in MODELS}) == len(MODELS)
 
 
+def _compiled_tables(model_id):
+    """The compiled dispatch, with the id a compile-time literal as in the kernels."""
+    import numba
+
+    def tables(sigma, f, h):
+        model_registry._tables(model_id, sigma, MU, LAM, f, h)
+        return model_registry._constants(model_id, MU, LAM)
+
+    return numba.njit(tables)
+
+
 @pytest.mark.parametrize("model", MODELS, ids=lambda model: model.__name__)
 def test_every_model_is_dispatched_to_its_module(model, rng):
     module = sys.modules[model.__module__]
@@ -34,6 +46,10 @@ def test_every_model_is_dispatched_to_its_module(model, rng):
     module.tables(sigma, MU, LAM, f_own, h_own)
     model_registry._tables(model.model_id, sigma, MU, LAM, f_registry, h_registry)
     assert np.array_equal(f_own, f_registry) and np.array_equal(h_own, h_registry)
+    f_compiled, h_compiled = np.zeros((3, 5)), np.zeros((3, 5))
+    constants = _compiled_tables(model.model_id)(sigma, f_compiled, h_compiled)
+    assert np.array_equal(f_own, f_compiled) and np.array_equal(h_own, h_compiled)
+    assert constants == module.constants(MU, LAM)
     assert module.constants(MU, LAM) == model_registry._constants(model.model_id, MU, LAM)
     assert module.slopes(sigma[0], sigma[1], MU, LAM) == model_registry._slopes(
         model.model_id, sigma[0], sigma[1], MU, LAM
@@ -73,6 +89,33 @@ def test_every_extension_is_dispatched_to_its_module(extension):
     (e1, r1, g1, h1), (e2, r2, g2, h2) = results
     assert r1 == r2 > 0
     assert e1 == e2 and np.array_equal(g1, g2) and np.array_equal(h1, h2)
+
+
+def test_a_material_compiles_only_its_own_chain(tmp_path):
+    """Neo-Hookean + C2 compiles Neo-Hookean and C2: no other model's or extension's functions
+    (the ids are compile-time literals, the dispatch an overload resolved while typing)."""
+    script = textwrap.dedent(
+        """
+        import numpy as np
+        import dolfinx_invertible as di
+        from dolfinx_invertible.constitutive.extensions import c1, c2, ife
+        from dolfinx_invertible.constitutive.models import corotated, neo_hookean, stvk
+        m = di.Material(di.NeoHookean(mu=1.0, lam=2.0), extension=di.C2())
+        F = np.array([np.diag([1.0, 1.0, -0.5]), np.eye(3)])
+        m.energy(F), m.stress(F), m.tangent(F)
+        used = {"neo_hookean": neo_hookean.tables, "c2": c2.c2_derivatives}
+        unused = {"corotated": corotated.tables, "stvk": stvk.tables,
+                  "c1": c1.c1_derivatives, "ife": ife.ife_derivatives}
+        assert all(f.signatures for f in used.values()), used
+        compiled = [name for name, f in unused.items() if f.signatures]
+        assert not compiled, compiled
+        """
+    )
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    completed = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600, env=environment
+    )
+    assert completed.returncode == 0, completed.stderr[-2000:]
 
 
 def test_batch_api_never_loads_dolfinx():

@@ -16,6 +16,7 @@ import ufl
 from petsc4py import PETSc
 
 from dolfinx_invertible import C1, C2, HyperelasticForms, Material, NeoHookean, _compat, lame
+from dolfinx_invertible.fem.forms import default_quadrature_degree
 
 pytestmark = pytest.mark.mpi
 
@@ -82,7 +83,7 @@ def assemble(energy, residual, jacobian):
 @pytest.mark.parametrize(
     "cell, degree",
     [("triangle", 1), ("triangle", 2), ("tetrahedron", 1), ("tetrahedron", 2),
-     ("quadrilateral", 1), ("quadrilateral", 2), ("hexahedron", 1)],
+     ("quadrilateral", 1), ("quadrilateral", 2), ("hexahedron", 1), ("hexahedron", 2)],
 )  # fmt: skip
 def test_kernels_match_ffcx_neo_hookean(cell, degree):
     """Uninverted state: energy, residual and exact tangent equal FFCx's to 1e-10 relative."""
@@ -100,6 +101,69 @@ def test_kernels_match_ffcx_neo_hookean(cell, degree):
     assert b.norm() <= 1e-10 * b_ufl.norm()
     A.axpy(-1.0, A_ufl)
     assert A.norm() <= 1e-10 * A_ufl.norm()
+
+
+@pytest.mark.parametrize(
+    "cell, degree", [("tetrahedron", 1), ("quadrilateral", 2), ("hexahedron", 1), ("hexahedron", 2)]
+)
+def test_default_quadrature_matches_ffcx(cell, degree):
+    """With the default rule (one per cell type) the kernels equal FFCx at that degree, and the
+    tangent of a tensor-product cell is not singular (no hourglass modes)."""
+    mesh = make_mesh(cell)
+    u = perturbed_displacement(mesh, degree, amplitude=0.05)
+    forms = HyperelasticForms(u, Material(NeoHookean(mu=MU, lam=LAM)), project=False)
+    assert forms.quadrature_degree == default_quadrature_degree(degree, cell)
+    reference = [dolfinx.fem.form(form) for form in neo_hookean_ufl(u, forms.quadrature_degree)]
+    energy_ufl, b_ufl, A_ufl = assemble(*reference)
+    energy, b, A = assemble(forms.energy, forms.residual, forms.jacobian)
+    assert abs(energy - energy_ufl) <= 1e-10 * abs(energy_ufl)
+    A.axpy(-1.0, A_ufl)
+    assert A.norm() <= 1e-10 * A_ufl.norm()
+
+
+def test_default_quadrature_degree_per_cell_type():
+    assert [default_quadrature_degree(k, "tetrahedron") for k in (1, 2)] == [1, 2]
+    assert [default_quadrature_degree(k, "triangle") for k in (1, 2)] == [1, 2]
+    assert [default_quadrature_degree(k, "quadrilateral") for k in (1, 2)] == [2, 4]
+    assert [default_quadrature_degree(k, "hexahedron") for k in (1, 2)] == [2, 4]
+    assert default_quadrature_degree(1, dolfinx.mesh.CellType.hexahedron) == 2
+    with pytest.raises(ValueError, match="prism"):
+        default_quadrature_degree(1, "prism")
+
+
+def test_p1_hexahedron_tangent_is_not_singular():
+    """One point per P1 hexahedron (the old default) leaves hourglass modes: with the default
+    rule the clamped tangent is positive definite (its smallest eigenvalue is clearly > 0)."""
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("dense eigenvalues of the serial matrix")
+    mesh = dolfinx.mesh.create_unit_cube(
+        MPI.COMM_SELF, 2, 2, 2, cell_type=dolfinx.mesh.CellType.hexahedron
+    )
+    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(V)
+    forms = HyperelasticForms(u, Material(NeoHookean(mu=MU, lam=LAM)))
+    matrix = dolfinx.fem.petsc.assemble_matrix(forms.jacobian)
+    matrix.assemble()
+    dense = matrix.convert("dense").getDenseArray()
+    x = mesh.geometry.x
+    fixed = np.flatnonzero(np.isclose(x[:, 0], 0.0))
+    keep = np.setdiff1d(
+        np.arange(dense.shape[0]), np.concatenate([3 * fixed + i for i in range(3)])
+    )
+    eigenvalues = np.linalg.eigvalsh(dense[np.ix_(keep, keep)])
+    assert eigenvalues[0] > 1e-6 * eigenvalues[-1]
+
+
+def test_overflowing_state_writes_no_nan():
+    """u = 1e200 x: the energy is +inf, the residual and tangent finite (zero contributions)."""
+    mesh = make_mesh("tetrahedron")
+    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(V)
+    u.interpolate(lambda x: 1e200 * x)
+    forms = HyperelasticForms(u, Material(NeoHookean(mu=MU, lam=LAM), C2()))
+    energy, b, A = assemble(forms.energy, forms.residual, forms.jacobian)
+    assert np.isposinf(energy)
+    assert np.all(np.isfinite(b.array)) and np.isfinite(A.norm())
 
 
 def test_parameter_change_needs_no_recompilation():

@@ -16,6 +16,7 @@ import dolfinx.fem.petsc
 import numpy as np
 import pytest
 
+import dolfinx_invertible as di
 from dolfinx_invertible import (
     C2,
     HyperelasticForms,
@@ -57,7 +58,9 @@ def assembled_counts(forms: HyperelasticForms) -> dict:
     [
         (1.05, True, {"energy": False, "residual": False, "tangent": False}),
         (0.95, True, {"energy": True, "residual": True, "tangent": True}),
-        (0.97, True, {"energy": False, "residual": False, "tangent": True}),
+        # Uniform compression above the threshold: the exact tangent is indefinite only in its
+        # rotational (twist) modes, which the fast path projects without an SVD.
+        (0.97, True, {"energy": False, "residual": False, "tangent": False}),
         (0.97, False, {"energy": False, "residual": False, "tangent": False}),
     ],
 )
@@ -107,9 +110,26 @@ def test_solve_reports_svd_share():
 def test_kernel_requests_are_checked():
     from dolfinx_invertible.fem import kernels
 
+    nh, c2 = di.NeoHookean.model_id, di.C2.extension_id
     with pytest.raises(ValueError, match="kind must be one of"):
-        kernels.kernel_address("mass", 3)
+        kernels.kernel_address("mass", 3, nh, c2)
     with pytest.raises(ValueError, match="dimension 1"):
-        kernels.kernel_address("residual", 1)
-    # Compiled once per (kind, dimension): the same address every time.
-    assert kernels.kernel_address("residual", 3) == kernels.kernel_address("residual", 3)
+        kernels.kernel_address("residual", 1, nh, c2)
+    with pytest.raises(ValueError, match="unknown model id"):
+        kernels.kernel_address("residual", 3, 99, c2)
+    # Compiled once per (kind, dimension, model, extension): the same address every time.
+    assert kernels.kernel_address("residual", 3, nh, c2) == kernels.kernel_address(
+        "residual", 3, nh, c2
+    )
+
+
+def test_default_materials_are_listed_once_next_to_the_compilation():
+    from dolfinx_invertible.fem import kernels
+
+    materials = kernels.default_materials()
+    assert len(materials) == len(kernels.DEFAULT_MATERIALS)
+    described = {
+        (type(m.model).__name__, m.extension and type(m.extension).__name__) for m in materials
+    }
+    assert ("NeoHookean", "C2") in described and ("StableNeoHookean", None) in described
+    assert len(described) == len(materials)

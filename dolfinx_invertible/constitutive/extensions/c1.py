@@ -18,8 +18,9 @@ from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.models.base import Model
 from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
+from dolfinx_invertible.constitutive.validation import Parameter
 
-__all__ = ["C1", "c1_derivatives"]
+__all__ = ["C1", "derivatives", "c1_derivatives"]
 
 
 @numba.njit(cache=True)
@@ -159,6 +160,16 @@ def c1_derivatives(model_id, sigma, params, order, work):
     return psi, count
 
 
+#: The module's entry for the compiled dispatch on the extension id.
+derivatives = c1_derivatives
+
+
+def _check_stiffness(name: str, k: float) -> float:
+    if not (k >= 0.0 and k < float("inf")):
+        raise ValueError(f"{name} must be a finite number >= 0 (or None for 20 E), got {k!r}")
+    return k
+
+
 class C1(Extension):
     """C1 extension past σᵢ = ε (default ε = 0.4) with quadratic penalty stiffness ``k``.
 
@@ -171,21 +182,33 @@ class C1(Extension):
         model it extends (the paper's choice).
     """
 
-    def __init__(self, eps: float = 0.4, k: float | None = None):
+    def __init__(self, eps=0.4, k=None):
         super().__init__(eps)
-        if k is not None:
-            k = float(k)
-            if not (k >= 0.0 and k < float("inf")):
-                raise ValueError(f"k must be a finite number >= 0 (or None for 20 E), got {k!r}")
-        self.k = k
+        self._k = None if k is None else Parameter("k", k, _check_stiffness)
+
+    @property
+    def k(self) -> float | None:
+        """Current stiffness, or None for 20·E of the model."""
+        return None if self._k is None else self._k.value
 
     def stiffness(self, model: Model) -> float:
         """Return the penalty stiffness used with ``model``: ``k``, or 20·E when ``k`` is None."""
-        return 20.0 * model.youngs_modulus if self.k is None else self.k
+        return 20.0 * model.youngs_modulus if self._k is None else self._k.value
 
     def parameters(self, model: Model) -> np.ndarray:
         """Return the parameters in the order the kernels read them: [ε, k]."""
         return np.array([self.eps, self.stiffness(model)])
 
+    def parameter_sources(self) -> dict:
+        """{position in :meth:`parameters`: the Constant it is read from}."""
+        sources = super().parameter_sources()
+        if self._k is not None and self._k.constant is not None:
+            sources[1] = self._k.constant
+        return sources
+
+    def derived_stiffness(self, model: Model) -> bool:
+        """K = 20·E follows μ and λ when either is read from a Constant."""
+        return self._k is None and bool(model.parameter_sources())
+
     def __repr__(self) -> str:
-        return f"C1(eps={self.eps!r}, k={self.k!r})"
+        return f"C1(eps={self._eps!r}, k={self._k!r})"

@@ -20,7 +20,7 @@ from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
 from dolfinx_invertible.constitutive.polynomial import first_root_in_unit_interval
 
-__all__ = ["C2", "c2_derivatives", "threshold_parameter"]
+__all__ = ["C2", "derivatives", "c2_derivatives", "threshold_parameter"]
 
 # |∂J/∂s| at the crossing is bounded below by this (relative): a tangential crossing is a
 # measure-zero event that would otherwise divide by zero.
@@ -170,6 +170,10 @@ def _specialised_c2_derivatives(d: int):
 
 _c2_derivatives_2d = _specialised_c2_derivatives(2)
 _c2_derivatives_3d = _specialised_c2_derivatives(3)
+
+
+#: The module's entry for the compiled dispatch on the extension id.
+derivatives = c2_derivatives
 
 
 class C2(Extension):

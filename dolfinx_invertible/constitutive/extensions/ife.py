@@ -15,7 +15,7 @@ from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.extensions.c2 import threshold_parameter
 from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
 
-__all__ = ["IFE", "ife_derivatives"]
+__all__ = ["IFE", "derivatives", "ife_derivatives"]
 
 
 @numba.njit(cache=True)
@@ -51,6 +51,10 @@ def ife_derivatives(model_id, sigma, params, order, work):
             out_H[i, j] = H[i, j]
         out_g[i] = total
     return 0.0, 1
+
+
+#: The module's entry for the compiled dispatch on the extension id.
+derivatives = ife_derivatives
 
 
 class IFE(Extension):

@@ -28,4 +28,4 @@ class ARAP(Model):
         super().__init__(mu, 0.0)
 
     def __repr__(self) -> str:
-        return f"ARAP(mu={self.mu!r})"
+        return f"ARAP(mu={self._mu!r})"

@@ -1,27 +1,23 @@
 """The registry of models, and the compiled dispatch from a model id to that model's tables.
 
-:data:`MODELS` lists every model once; a model's id is its position there. The kernels branch
-on that integer id instead of being specialised per model: one compiled function (cached on
-disk) serves every model, and the branch is perfectly predictable inside a batch. Adding a model
-is a new module with ``constants``, ``tables`` and ``slopes`` (and, for a model written in
-invariants, ``invariant_terms`` and ``invariant_curvature``), its class in :data:`MODELS` and
-one branch per dispatcher here; the tests check every registered model is dispatched to its own
-module.
+:data:`MODELS` lists every model once; a model's id is its position there. The kernels take
+that integer id as a compile-time literal, so each compiled chain (cached on disk) holds the one
+model it serves: a scene compiles its own model, not all of them. Adding a model is a new module
+with ``constants``, ``tables`` and ``slopes`` (and, for a model written in invariants,
+``invariant_terms`` and ``invariant_curvature``; ``USES_SECOND_INVARIANT = True`` if those read
+I₂) and its class in :data:`MODELS`: the dispatchers here look the module up. The tests check
+every registered model is dispatched to its own module.
 """
 
 from __future__ import annotations
 
+import sys
+
 import numba
+from numba.extending import overload
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.models import (
-    arap,
-    corotated,
-    fixed_corotated,
-    neo_hookean,
-    stable_neo_hookean,
-    stvk,
-)
+from dolfinx_invertible.constitutive.literal import force_literal, literal_id
 from dolfinx_invertible.constitutive.models.arap import ARAP
 from dolfinx_invertible.constitutive.models.base import Model
 from dolfinx_invertible.constitutive.models.corotated import Corotated
@@ -41,6 +37,7 @@ __all__ = [
     "model_gradient_slope",
     "model_invariant_terms",
     "model_invariant_curvature",
+    "model_uses_second_invariant",
 ]
 
 
@@ -56,91 +53,144 @@ MODELS: tuple[type[Model], ...] = (
 for _model_id, _model in enumerate(MODELS):
     _model.model_id = _model_id
 
-# The ids as module constants, which the compiled dispatchers read as compile-time constants.
-_NEO_HOOKEAN = NeoHookean.model_id
-_COROTATED = Corotated.model_id
-_FIXED_COROTATED = FixedCorotated.model_id
-_STABLE_NEO_HOOKEAN = StableNeoHookean.model_id
-_ARAP = ARAP.model_id
-_STVK = StVK.model_id
+_MODULES = tuple(sys.modules[model.__module__] for model in MODELS)
 
 
-@numba.njit(cache=True)
+# Each dispatcher below is a Python function (callable as such, from Python) with a compiled
+# overload that resolves the model at compile time: the kernels pass the model id as a literal
+# (see :mod:`~dolfinx_invertible.constitutive.literal`), so a compiled chain contains the model it
+# serves and no other. A caller that passes a run-time id is made to pass a literal instead.
 def _tables(model_id, sigma, mu, lam, f, h):
-    if model_id == _NEO_HOOKEAN:
-        return neo_hookean.tables(sigma, mu, lam, f, h)
-    if model_id == _COROTATED:
-        return corotated.tables(sigma, mu, lam, f, h)
-    if model_id == _FIXED_COROTATED:
-        return fixed_corotated.tables(sigma, mu, lam, f, h)
-    if model_id == _STABLE_NEO_HOOKEAN:
-        return stable_neo_hookean.tables(sigma, mu, lam, f, h)
-    if model_id == _ARAP:
-        return arap.tables(sigma, mu, lam, f, h)
-    return stvk.tables(sigma, mu, lam, f, h)
+    return _MODULES[model_id].tables(sigma, mu, lam, f, h)
 
 
-@numba.njit(cache=True)
+@overload(_tables, prefer_literal=True)
+def _tables_compiled(model_id, sigma, mu, lam, f, h):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(_tables)
+    tables = _MODULES[value].tables
+
+    def implementation(model_id, sigma, mu, lam, f, h):
+        return tables(sigma, mu, lam, f, h)
+
+    return implementation
+
+
 def _constants(model_id, mu, lam):
-    if model_id == _NEO_HOOKEAN:
-        return neo_hookean.constants(mu, lam)
-    if model_id == _COROTATED:
-        return corotated.constants(mu, lam)
-    if model_id == _FIXED_COROTATED:
-        return fixed_corotated.constants(mu, lam)
-    if model_id == _STABLE_NEO_HOOKEAN:
-        return stable_neo_hookean.constants(mu, lam)
-    if model_id == _ARAP:
-        return arap.constants(mu, lam)
-    return stvk.constants(mu, lam)
+    return _MODULES[model_id].constants(mu, lam)
 
 
-@numba.njit(cache=True)
+@overload(_constants, prefer_literal=True)
+def _constants_compiled(model_id, mu, lam):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(_constants)
+    constants = _MODULES[value].constants
+
+    def implementation(model_id, mu, lam):
+        return constants(mu, lam)
+
+    return implementation
+
+
 def _slopes(model_id, x, y, mu, lam):
-    if model_id == _NEO_HOOKEAN:
-        return neo_hookean.slopes(x, y, mu, lam)
-    if model_id == _COROTATED:
-        return corotated.slopes(x, y, mu, lam)
-    if model_id == _FIXED_COROTATED:
-        return fixed_corotated.slopes(x, y, mu, lam)
-    if model_id == _STABLE_NEO_HOOKEAN:
-        return stable_neo_hookean.slopes(x, y, mu, lam)
-    if model_id == _ARAP:
-        return arap.slopes(x, y, mu, lam)
-    return stvk.slopes(x, y, mu, lam)
+    return _MODULES[model_id].slopes(x, y, mu, lam)
 
 
-@numba.njit(cache=True)
+@overload(_slopes, prefer_literal=True)
+def _slopes_compiled(model_id, x, y, mu, lam):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(_slopes)
+    slopes = _MODULES[value].slopes
+
+    def implementation(model_id, x, y, mu, lam):
+        return slopes(x, y, mu, lam)
+
+    return implementation
+
+
 def model_invariant_terms(model_id, I1, I2, J, d, params):
     """(available, Ψ, ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J) for models written in I₁ = tr C, I₂ = tr C², J.
 
     Such models need no SVD where their extension is inactive; ``available`` is False for the
     others (their energy needs the singular values themselves).
     """
-    mu = params[0]
-    lam = params[1]
-    if model_id == _NEO_HOOKEAN:
-        psi, d1, d2, dJ = neo_hookean.invariant_terms(I1, I2, J, d, mu, lam)
-        return True, psi, d1, d2, dJ
-    if model_id == _STABLE_NEO_HOOKEAN:
-        psi, d1, d2, dJ = stable_neo_hookean.invariant_terms(I1, I2, J, d, mu, lam)
-        return True, psi, d1, d2, dJ
-    if model_id == _STVK:
-        psi, d1, d2, dJ = stvk.invariant_terms(I1, I2, J, d, mu, lam)
-        return True, psi, d1, d2, dJ
-    return False, 0.0, 0.0, 0.0, 0.0
+    module = _MODULES[model_id]
+    if not hasattr(module, "invariant_terms"):
+        return False, 0.0, 0.0, 0.0, 0.0
+    return (True, *module.invariant_terms(I1, I2, J, d, params[0], params[1]))
 
 
-@numba.njit(cache=True)
+@overload(model_invariant_terms, prefer_literal=True)
+def _model_invariant_terms_compiled(model_id, I1, I2, J, d, params):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(model_invariant_terms)
+    module = _MODULES[value]
+    if not hasattr(module, "invariant_terms"):
+
+        def unavailable(model_id, I1, I2, J, d, params):
+            return False, 0.0, 0.0, 0.0, 0.0
+
+        return unavailable
+    terms = module.invariant_terms
+
+    def implementation(model_id, I1, I2, J, d, params):
+        psi, d1, d2, dJ = terms(I1, I2, J, d, params[0], params[1])
+        return True, psi, d1, d2, dJ
+
+    return implementation
+
+
 def model_invariant_curvature(model_id, I1, I2, J, d, params):
     """(Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) for the models :func:`model_invariant_terms` serves."""
-    mu = params[0]
-    lam = params[1]
-    if model_id == _NEO_HOOKEAN:
-        return neo_hookean.invariant_curvature(I1, I2, J, d, mu, lam)
-    if model_id == _STABLE_NEO_HOOKEAN:
-        return stable_neo_hookean.invariant_curvature(I1, I2, J, d, mu, lam)
-    return stvk.invariant_curvature(I1, I2, J, d, mu, lam)
+    module = _MODULES[model_id]
+    if not hasattr(module, "invariant_curvature"):
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return module.invariant_curvature(I1, I2, J, d, params[0], params[1])
+
+
+@overload(model_invariant_curvature, prefer_literal=True)
+def _model_invariant_curvature_compiled(model_id, I1, I2, J, d, params):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(model_invariant_curvature)
+    module = _MODULES[value]
+    if not hasattr(module, "invariant_curvature"):
+
+        def unavailable(model_id, I1, I2, J, d, params):
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+        return unavailable
+    curvature = module.invariant_curvature
+
+    def implementation(model_id, I1, I2, J, d, params):
+        return curvature(I1, I2, J, d, params[0], params[1])
+
+    return implementation
+
+
+def model_uses_second_invariant(model_id):
+    """Tell whether the model's invariant form reads I₂ = tr C² (``USES_SECOND_INVARIANT``).
+
+    A compile-time constant in compiled code.
+    """
+    return bool(getattr(_MODULES[model_id], "USES_SECOND_INVARIANT", False))
+
+
+@overload(model_uses_second_invariant, prefer_literal=True)
+def _model_uses_second_invariant_compiled(model_id):
+    value = literal_id(model_id)
+    if value is None:
+        return force_literal(model_uses_second_invariant)
+    flag = model_uses_second_invariant(value)
+
+    def implementation(model_id):
+        return flag
+
+    return implementation
 
 
 @numba.njit(cache=True)

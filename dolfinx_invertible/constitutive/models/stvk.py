@@ -11,6 +11,9 @@ import numba
 
 from dolfinx_invertible.constitutive.models.base import Model
 
+#: The invariant form reads I₂ = tr C² (the fast path computes it only for such models).
+USES_SECOND_INVARIANT = True
+
 
 @numba.njit(cache=True)
 def constants(mu, lam):

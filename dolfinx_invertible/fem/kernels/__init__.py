@@ -8,10 +8,21 @@
 - :mod:`.compilation`: the C entry points, compiled on first use.
 """
 
-from dolfinx_invertible.fem.kernels.compilation import compile_kernel, kernel_address, precompile
+from dolfinx_invertible.fem.kernels.compilation import (
+    DEFAULT_MATERIALS,
+    compile_kernel,
+    compiled_kernels,
+    default_materials,
+    kernel_address,
+    precompile,
+)
 from dolfinx_invertible.fem.kernels.constants import (
+    DERIVED_STIFFNESS,
     HEADER_SIZE,
     MAX_NODES,
+    NO_SOURCE,
+    PARAMETER_COUNT,
+    PARAMETER_SOURCES_SLOT,
     PARAMETERS_START,
     PROJECT_SLOT,
     pack_constants,
@@ -20,15 +31,22 @@ from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS, counter_row, c
 from dolfinx_invertible.fem.kernels.tables import ReferenceTables
 
 __all__ = [
+    "DEFAULT_MATERIALS",
+    "DERIVED_STIFFNESS",
     "HEADER_SIZE",
     "KERNEL_KINDS",
     "MAX_NODES",
+    "NO_SOURCE",
+    "PARAMETER_COUNT",
+    "PARAMETER_SOURCES_SLOT",
     "PARAMETERS_START",
     "PROJECT_SLOT",
     "ReferenceTables",
     "compile_kernel",
+    "compiled_kernels",
     "counter_row",
     "counts_by_kind",
+    "default_materials",
     "kernel_address",
     "pack_constants",
     "precompile",

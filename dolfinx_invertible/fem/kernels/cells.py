@@ -7,14 +7,20 @@ They share one quadrature loop and the point functions of
 * residual: ``A[a·d + i] = ∫_cell P_ij ∂φ_a/∂X_j dX``;
 * tangent: ``A[a·d + i, b·d + k] = ∫_cell ∂φ_a/∂X_j (dP/dF)_{ij,kl} ∂φ_b/∂X_l dX``,
 
-with F = I + ∇u. The coefficient array ``w`` holds the cell's displacement dofs node by node
+with F = I + ∇u. A point whose energy overflows (a finite but enormous F) adds +inf to the
+energy, so a line search backtracks from such a state; where its stress or tangent would
+overflow, the point adds nothing to the residual and the tangent (never NaN or inf) and +inf to
+the energy (:data:`~dolfinx_invertible.constitutive.principal.OVERFLOW_REGION`).
+
+The coefficient array ``w`` holds the cell's displacement dofs node by node
 with components interleaved; the constants ``c`` follow
 :mod:`~dolfinx_invertible.fem.kernels.constants`.
 
-The cell functions are compiled per dimension, a literal constant (``numba.literally``), so the
-loops over components have constant trip counts and are unrolled and vectorised: with a run-time
-dimension the same loops were several times slower (a constant node count as well measured no
-faster).
+The cell functions are compiled per dimension, model and extension, all three literal constants
+(``numba.literally``): the loops over components have constant trip counts and are unrolled and
+vectorised (with a run-time dimension the same loops were several times slower; a constant node
+count as well measured no faster), and only the chain of the material in use is compiled
+(:mod:`~dolfinx_invertible.constitutive.literal`).
 """
 
 from __future__ import annotations
@@ -24,10 +30,10 @@ import numba
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
 from dolfinx_invertible.fem.kernels.constants import (
-    EXTENSION_SLOT,
+    DERIVED_STIFFNESS,
     MAX_NODES,
-    MODEL_SLOT,
     PARAMETER_COUNT,
+    PARAMETER_SOURCES_SLOT,
     PARAMETERS_START,
     POSITIVE_ONLY_SLOT,
     PROJECT_SLOT,
@@ -55,16 +61,25 @@ KERNEL_SCRATCH = _CONTRACTED + 9 * 3 * MAX_NODES
 
 
 @numba.njit(cache=True)
-def _material(c):
-    """(parameters, model id, extension id, positive_only, project) from the constants."""
-    params = c[PARAMETERS_START : PARAMETERS_START + PARAMETER_COUNT]
-    return (
-        params,
-        int(c[MODEL_SLOT]),
-        int(c[EXTENSION_SLOT]),
-        c[POSITIVE_ONLY_SLOT] != 0.0,
-        c[PROJECT_SLOT] != 0.0,
-    )
+def _material(c_, c, params):
+    """Fill ``params`` ([μ, λ, ε, k]) from the constants; return (positive_only, project).
+
+    A parameter given as a DOLFINx Constant is read from that Constant, which DOLFINx packs
+    after the kernel's own constants (see :mod:`.constants`), so a new ``value`` is seen at the
+    next assembly; a C1 stiffness left to its default follows μ and λ (20 E).
+    """
+    total = c.shape[0]
+    for p in range(PARAMETER_COUNT):
+        source = c[PARAMETER_SOURCES_SLOT + p]
+        if source >= 0.0:
+            params[p] = c_[total + int(source)]
+        else:
+            params[p] = c[PARAMETERS_START + p]
+    if c[PARAMETER_SOURCES_SLOT + PARAMETER_COUNT - 1] == DERIVED_STIFFNESS:
+        mu = params[0]
+        lam = params[1]
+        params[3] = 20.0 * mu * (3.0 * lam + 2.0 * mu) / (lam + mu)
+    return c[POSITIVE_ONLY_SLOT] != 0.0, c[PROJECT_SLOT] != 0.0
 
 
 @numba.njit(cache=True)
@@ -77,13 +92,16 @@ def _point_views(scratch, nodes, d):
 
 
 @numba.njit(cache=True)
-def cell_energy(A_, w_, c_, coordinates_, d):
+def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
     """Add the cell energy ∫Ψ(F) dX to ``A_[0]``."""
     numba.literally(d)
+    numba.literally(model_id)
+    numba.literally(extension_id)
     c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
         c_, w_, coordinates_, d
     )
-    params, model_id, extension_id, positive_only, _ = _material(c)
+    params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
+    positive_only, _ = _material(c_, c, params)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     gradients, jacobian, F = _point_views(scratch, nodes, d)
@@ -101,13 +119,16 @@ def cell_energy(A_, w_, c_, coordinates_, d):
 
 
 @numba.njit(cache=True)
-def cell_residual(A_, w_, c_, coordinates_, d):
+def cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id):
     """Add the cell residual ∫ P : ∇φ dX to ``A_``."""
     numba.literally(d)
+    numba.literally(model_id)
+    numba.literally(extension_id)
     c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
         c_, w_, coordinates_, d
     )
-    params, model_id, extension_id, positive_only, _ = _material(c)
+    params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
+    positive_only, _ = _material(c_, c, params)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     gradients, jacobian, F = _point_views(scratch, nodes, d)
@@ -130,13 +151,16 @@ def cell_residual(A_, w_, c_, coordinates_, d):
 
 
 @numba.njit(cache=True)
-def cell_tangent(A_, w_, c_, coordinates_, d):
+def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
     """Add the cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
     numba.literally(d)
+    numba.literally(model_id)
+    numba.literally(extension_id)
     c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
         c_, w_, coordinates_, d
     )
-    params, model_id, extension_id, positive_only, project = _material(c)
+    params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
+    positive_only, project = _material(c_, c, params)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     gradients, jacobian, F = _point_views(scratch, nodes, d)

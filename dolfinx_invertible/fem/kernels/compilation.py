@@ -1,6 +1,9 @@
 """The C entry points DOLFINx calls, compiled on first use into numba's disk cache.
 
-One entry per (kind, dimension). Two arities exist because ufcx's ``tabulate_tensor`` gained a
+One entry per (kind, dimension, model, extension): the model and extension ids are compile-time
+literals like the dimension, so an entry holds the chain of its material only
+(:mod:`~dolfinx_invertible.constitutive.literal`) and a cold start compiles that chain, not every
+model and extension. Two arities exist because ufcx's ``tabulate_tensor`` gained a
 ``custom_data`` pointer in DOLFINx 0.10; :mod:`~dolfinx_invertible._compat` says which one this
 DOLFINx wants. An entry is compiled only when a form first needs it, so a scene that never asks
 for the energy, say, never compiles its kernel.
@@ -15,37 +18,58 @@ import numba
 from dolfinx_invertible.fem.kernels.cells import cell_energy, cell_residual, cell_tangent
 from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS
 
-__all__ = ["compile_kernel", "kernel_address", "precompile"]
+__all__ = [
+    "DEFAULT_MATERIALS",
+    "compile_kernel",
+    "compiled_kernels",
+    "default_materials",
+    "kernel_address",
+    "precompile",
+]
 
-_COMPILED: dict[tuple[str, int], object] = {}
+_COMPILED: dict[tuple[str, int, int, int], object] = {}
+
+#: The materials ``python -m dolfinx_invertible compile`` (``make setup``) compiles kernels for,
+#: in 2D and 3D: those the demos and the documentation's scenes use, as (model class name,
+#: extension class name or None).
+DEFAULT_MATERIALS: tuple[tuple[str, str | None], ...] = (
+    ("NeoHookean", "C2"),
+    ("NeoHookean", "C1"),
+    ("NeoHookean", "IFE"),
+    ("NeoHookean", None),
+    ("Corotated", None),
+    ("FixedCorotated", None),
+    ("StableNeoHookean", None),
+)
 
 
-# Each entry names its cell function as a global and captures only the dimension: numba keys its
-# disk cache on the captured values, which must stay plain numbers.
-def _entries(kind: str, d: int) -> tuple:
+# Each entry names its cell function as a global and captures only integers (dimension, model
+# and extension id): numba keys its disk cache on the captured values, which must stay plain
+# numbers.
+def _entries(kind: str, d: int, model_id: int, extension_id: int) -> tuple:
     if kind == "energy":
 
         def entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
-            cell_energy(A_, w_, c_, coordinates_, d)
+            cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id)
 
         def entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-            cell_energy(A_, w_, c_, coordinates_, d)
+            cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id)
 
     elif kind == "residual":
 
         def entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
-            cell_residual(A_, w_, c_, coordinates_, d)
+            cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id)
 
         def entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-            cell_residual(A_, w_, c_, coordinates_, d)
+            cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id)
 
     else:
 
         def entry(A_, w_, c_, coordinates_, entity_local_index, permutation):
-            cell_tangent(A_, w_, c_, coordinates_, d)
+            cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id)
 
         def entry_with_data(A_, w_, c_, coordinates_, entity_local_index, permutation, data):
-            cell_tangent(A_, w_, c_, coordinates_, d)
+            cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id)
 
     return entry, entry_with_data
 
@@ -63,7 +87,7 @@ def compile_kernel(entries: tuple) -> object:
     return numba.cfunc(_compat.KERNEL_SIGNATURE, nopython=True, cache=True)(entry)
 
 
-def kernel_address(kind: str, dimension: int) -> int:
+def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) -> int:
     """Return the address of a compiled cell kernel.
 
     Parameters
@@ -72,28 +96,57 @@ def kernel_address(kind: str, dimension: int) -> int:
         ``"energy"``, ``"residual"`` or ``"tangent"``.
     dimension
         2 or 3; any supported element of that dimension uses the same kernel.
+    model_id, extension_id
+        Registry ids of the material's model and extension (``Material.model.model_id``,
+        ``Material.extension_id``).
     """
+    from dolfinx_invertible.constitutive.extensions import EXTENSIONS
+    from dolfinx_invertible.constitutive.models import MODELS
+
     if kind not in KERNEL_KINDS:
         raise ValueError(f"kind must be one of {KERNEL_KINDS}, got {kind!r}")
     if dimension not in (2, 3):
         raise ValueError(f"no kernel for dimension {dimension}; 2 and 3 are supported")
-    key = (kind, int(dimension))
+    if model_id not in range(len(MODELS)) or extension_id not in range(len(EXTENSIONS)):
+        raise ValueError(f"unknown model id {model_id!r} or extension id {extension_id!r}")
+    key = (kind, int(dimension), int(model_id), int(extension_id))
     if key not in _COMPILED:
         _COMPILED[key] = compile_kernel(_entries(*key))
     return _COMPILED[key].address
 
 
-def precompile(dimensions: tuple[int, ...] = (3, 2)) -> dict[tuple[str, int], float]:
-    """Compile every cell kernel for ``dimensions`` into numba's disk cache; seconds per kernel.
+def compiled_kernels() -> int:
+    """Return how many cell kernels this process has compiled or loaded (tests count them)."""
+    return len(_COMPILED)
 
-    ``make setup`` runs this (``python -m dolfinx_invertible compile``) so that the first
-    assembly in a user's script loads the kernels instead of compiling them; with a warm cache
-    it takes about a second.
+
+def default_materials():
+    """Return the :class:`~dolfinx_invertible.Material` of each :data:`DEFAULT_MATERIALS` entry."""
+    from dolfinx_invertible import constitutive
+
+    materials = []
+    for model_name, extension_name in DEFAULT_MATERIALS:
+        model = getattr(constitutive, model_name)(mu=1.0, lam=1.0)
+        extension = None if extension_name is None else getattr(constitutive, extension_name)()
+        materials.append(constitutive.Material(model, extension))
+    return materials
+
+
+def precompile(
+    dimensions: tuple[int, ...] = (3, 2), materials=None
+) -> dict[tuple[str, int, str], float]:
+    """Compile the cell kernels of ``materials`` into numba's disk cache; seconds per kernel.
+
+    ``materials`` defaults to :func:`default_materials`. ``make setup`` runs this
+    (``python -m dolfinx_invertible compile``) so that the first assembly in a user's script
+    loads the kernels instead of compiling them; with a warm cache it takes a few seconds.
+    Keys are (kind, dimension, material description).
     """
     seconds = {}
-    for dimension in dimensions:
-        for kind in KERNEL_KINDS:
-            start = time.perf_counter()
-            kernel_address(kind, dimension)
-            seconds[(kind, dimension)] = time.perf_counter() - start
+    for material in default_materials() if materials is None else materials:
+        for dimension in dimensions:
+            for kind in KERNEL_KINDS:
+                start = time.perf_counter()
+                kernel_address(kind, dimension, material.model.model_id, material.extension_id)
+                seconds[(kind, dimension, repr(material))] = time.perf_counter() - start
     return seconds

@@ -5,6 +5,11 @@ Constant: a header, the material parameters, then the Basix reference tables. Pa
 as data rather than baking them into the machine code lets one compiled (and disk-cached) kernel
 serve every element, quadrature rule and material; DOLFINx packs constants once per assembly,
 not per cell, and changing a parameter or the projection switch never recompiles.
+
+Material parameters given as scalar DOLFINx Constants are not copied: the forms pass those
+Constants to DOLFINx after this array (DOLFINx concatenates a form's constants in order), the
+header says which parameter sits at which offset there, and the kernels read them at every
+assembly, so ``mu.value = ...`` takes effect as in a UFL form.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from dolfinx_invertible.fem.kernels.tables import ReferenceTables
 
 __all__ = [
     "COUNTERS_SLOT",
+    "DERIVED_STIFFNESS",
     "DIMENSION_SLOT",
     "EXTENSION_SLOT",
     "GEOMETRY_NODES_SLOT",
@@ -22,11 +28,14 @@ __all__ = [
     "MAX_NODES",
     "MODEL_SLOT",
     "NODES_SLOT",
+    "NO_SOURCE",
     "PARAMETERS_START",
     "PARAMETER_COUNT",
+    "PARAMETER_SOURCES_SLOT",
     "POINTS_SLOT",
     "POSITIVE_ONLY_SLOT",
     "PROJECT_SLOT",
+    "USER_CONSTANTS_SLOT",
     "WEIGHTS_START",
     "pack_constants",
 ]
@@ -41,16 +50,22 @@ EXTENSION_SLOT = 5  # registry id of the extension
 POSITIVE_ONLY_SLOT = 6  # 1.0: the energy is undefined at J <= 0
 PROJECT_SLOT = 7  # 1.0: SPD-projected tangent
 COUNTERS_SLOT = 8  # address (as float64 bits) of the path-counter row the kernels count into
-HEADER_SIZE = 9
-
 PARAMETER_COUNT = 4  # Material.parameters: [μ, λ, ε, k]
+# Where each parameter is read: NO_SOURCE (the value packed below), an offset into the user's
+# Constants that DOLFINx packs after this array, or (k only) DERIVED_STIFFNESS, 20·E(μ, λ).
+PARAMETER_SOURCES_SLOT = 9
+USER_CONSTANTS_SLOT = PARAMETER_SOURCES_SLOT + PARAMETER_COUNT  # how many values follow
+HEADER_SIZE = USER_CONSTANTS_SLOT + 1
+NO_SOURCE = -1.0
+DERIVED_STIFFNESS = -2.0
+
 PARAMETERS_START = HEADER_SIZE
 # Then: quadrature weights (points), basis derivatives (points × nodes × d), geometry
 # derivatives (points × geometry nodes × d).
 WEIGHTS_START = PARAMETERS_START + PARAMETER_COUNT
 
-#: Largest number of nodes per cell the kernels' stack scratch is sized for.
-MAX_NODES = 10
+#: Largest number of nodes per cell the kernels' stack scratch is sized for (Q2 hexahedra).
+MAX_NODES = 27
 
 
 def pack_constants(
@@ -59,6 +74,8 @@ def pack_constants(
     material,
     project: bool,
     counters: np.ndarray | None = None,
+    sources: np.ndarray | None = None,
+    user_constants: int = 0,
 ) -> np.ndarray:
     """Return the constants array the cell kernels read.
 
@@ -75,6 +92,11 @@ def pack_constants(
     counters
         Row of :data:`~dolfinx_invertible.fem.kernels.counters.PATH_COUNTERS` the kernels
         count into; ``None`` for no counting.
+    sources
+        Per parameter, :data:`NO_SOURCE`, an offset into the user Constants packed after this
+        array, or :data:`DERIVED_STIFFNESS`; ``None``: every parameter from this array.
+    user_constants
+        Number of values DOLFINx packs after this array (the user's Constants).
     """
     points, nodes, _ = tables.basis_derivatives.shape
     geometry_nodes = tables.geometry_derivatives.shape[1]
@@ -94,6 +116,10 @@ def pack_constants(
     header[POSITIVE_ONLY_SLOT] = float(material.positive_only)
     header[PROJECT_SLOT] = float(project)
     header[COUNTERS_SLOT] = address
+    header[PARAMETER_SOURCES_SLOT : PARAMETER_SOURCES_SLOT + PARAMETER_COUNT] = (
+        NO_SOURCE if sources is None else sources
+    )
+    header[USER_CONSTANTS_SLOT] = user_constants
     return np.concatenate(
         [
             header,
