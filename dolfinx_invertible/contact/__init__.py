@@ -15,7 +15,10 @@ The modules up to :mod:`.ccd` need only NumPy; the last three need DOLFINx and a
 first use of their names.
 """
 
+# The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
 import importlib
+
+from mpi4py import MPI  # noqa: F401
 
 from dolfinx_invertible.contact.barrier import (
     DEFAULT_DISTANCE_FRACTION,

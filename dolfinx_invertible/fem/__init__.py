@@ -7,6 +7,9 @@
 - :mod:`.spaces`: function spaces on every supported DOLFINx.
 """
 
+# The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
+from mpi4py import MPI  # noqa: F401
+
 from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
 from dolfinx_invertible.fem.diagnostics import DIAGNOSTIC_NAMES, cell_diagnostics, summary
 from dolfinx_invertible.fem.forms import HyperelasticForms, default_quadrature_degree

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import importlib
 
+# The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
+from mpi4py import MPI  # noqa: F401
+
 from dolfinx_invertible.scenes.parameters import Parameters, make_material
 from dolfinx_invertible.scenes.scene import Scene
 

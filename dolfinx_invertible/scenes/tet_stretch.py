@@ -51,6 +51,8 @@ class TetStretch(Scene):
         """Hold the base in its plane (z = 0): one vertex pinned, one sliding along x."""
         mesh, size = space.mesh, self.parameters.size
         vertices = VERTICES * size
+        # DOLFINx 0.9 and later locate dofs of vertices only once this is there.
+        mesh.topology.create_connectivity(0, mesh.topology.dim)
 
         def at(index):
             return dolfinx.mesh.locate_entities(

@@ -13,6 +13,9 @@
 - :mod:`.dynamics`: implicit time stepping.
 """
 
+# The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
+from mpi4py import MPI  # noqa: F401
+
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem, external_forms
 from dolfinx_invertible.solvers.newton import EnergyMinimizer
