@@ -1,11 +1,10 @@
 """A soft cube dropped into a bowl: it falls, hits the bottom, rocks and settles.
 
-A cube of side 0.4 centred at the origin, at rest, inside the bowl |x| ≤ 1 (the inside of the
-unit sphere about the origin), falls under gravity (0, 0, −9.81) m/s²; Neo-Hookean with the C2
-extension, backward Euler, frictionless contact through the IPC barrier with continuous
-collision detection on every Newton step. Prints the smallest gap over the run and the number
-of penetrations (boundary vertices found inside the bowl after any accepted step, or at any
-Newton iterate): both counts must be 0, and the script exits non-zero otherwise.
+The ``bowl-drop`` scene (``dolfinx-invertible run bowl-drop``, see
+``dolfinx_invertible/scenes/bowl_drop.py``) with one check more: besides the boundary vertices
+of every accepted step, every Newton iterate is checked for vertices inside the bowl. Prints
+the smallest gap over the run and both penetration counts, which must be 0: the script exits
+non-zero otherwise. Writes ``output/bowl-drop/`` (XDMF, step log, summary).
 
     .venv/bin/python demos/bowl_drop.py
     mpirun -n 2 .venv/bin/python demos/bowl_drop.py
@@ -13,153 +12,73 @@ Newton iterate): both counts must be 0, and the script exits non-zero otherwise.
 
 from __future__ import annotations
 
-import dataclasses
 import sys
-import time
+from pathlib import Path
 
 # mpi4py before dolfinx: the PyPI DOLFINx wheel loads its MPI library through mpi4py.
 from mpi4py import MPI
 
-import dolfinx
-import numpy as np
-
-from dolfinx_invertible import (
-    C2,
-    ImplicitDynamics,
-    Material,
-    NeoHookean,
-    lame,
-    vector_function_space,
-)
-from dolfinx_invertible.contact import ContactTerm, Sphere
-
-SIDE = 0.4  # m
-CELLS = 4  # per side: 4³ × 6 tetrahedra
-YOUNGS_MODULUS, POISSON = 5.0e4, 0.4  # Pa: a soft gel
-DENSITY = 1000.0  # kg/m³
-GRAVITY = (0.0, 0.0, -9.81)  # m/s²
-DT = 0.01  # s
-END_TIME = 2.0  # s
-DAMPING = 1.0  # 1/s, mass proportional: lets the rocking die out within the run
+from dolfinx_invertible.scenes import Parameters, run_scene
+from dolfinx_invertible.scenes.bowl_drop import BowlDrop
 
 
-@dataclasses.dataclass
-class BowlDrop:
-    """The pieces of the scene, for reuse: the body, the obstacles and the contact."""
+class CheckedBowlDrop(BowlDrop):
+    """The bowl-drop scene, also counting boundary vertices in the bowl at every Newton iterate."""
 
-    mesh: dolfinx.mesh.Mesh
-    u: dolfinx.fem.Function
-    material: Material
-    obstacles: list
-    term: ContactTerm
-    step_limit: object
+    iterates = 0
+    iterate_penetrations = 0
+
+    def record(self, run) -> None:
+        """Record the step; before the first one, start checking the Newton iterates."""
+        super().record(run)
+        if run.result is None:  # the initial state: the solver exists, no step taken yet
+            problem = run.dynamics.problem
+
+            def monitor(snes, iteration, norm):
+                # Collective on every rank: the contact queries reduce over the ranks.
+                problem.energy_problem.update_solution(snes.getSolution())
+                self.iterates += 1
+                self.iterate_penetrations += self.contact.penetrations()
+                self.min_gap = min(self.min_gap, self.contact.minimum_gap())
+
+            problem.solver.snes.setMonitor(monitor)
+
+    def quantities(self, run):
+        """Add the Newton iterates checked and the penetrations found there."""
+        return {
+            **super().quantities(run),
+            "iterates": self.iterates,
+            "iterate_penetrations": self.iterate_penetrations,
+        }
 
 
-def setup(comm: MPI.Comm = MPI.COMM_WORLD, cells: int = CELLS) -> BowlDrop:
-    """Return the cube at rest in the bowl, with its contact term and collision-free step."""
-    half = 0.5 * SIDE
-    mesh = dolfinx.mesh.create_box(comm, [[-half] * 3, [half] * 3], [cells] * 3)
-    u = dolfinx.fem.Function(vector_function_space(mesh, 1), name="displacement")
-    mu, lam = lame(E=YOUNGS_MODULUS, nu=POISSON)
-    material = Material(NeoHookean(mu=mu, lam=lam), extension=C2(eps=0.9))
-    obstacles = [Sphere((0.0, 0.0, 0.0), 1.0, inside=True)]
-    term = ContactTerm(u, obstacles, material)
-    return BowlDrop(mesh, u, material, obstacles, term, term.step_limit())
-
-
-def run(scene: BowlDrop, end_time: float = END_TIME, dt: float = DT) -> dict:
-    """Drop the cube and return the run's figures (over all ranks)."""
-    term = scene.term
-
-    def move_obstacles(t):
-        term.set_time(t)
-        term.separate()  # a no-op for this fixed bowl; needed once obstacles move
-
-    dynamics = ImplicitDynamics(
-        scene.u,
-        scene.material,
-        density=DENSITY,
-        dt=dt,
-        gravity=GRAVITY,
-        damping=DAMPING,
-        terms=[term],
-        step_limits=[scene.step_limit],
-        boundary_update=move_obstacles,
-    )
-    figures = {
-        "steps": 0,
-        "newton_iterations": 0,
-        "minimum_gap": term.minimum_gap(),
-        "penetrations": 0,
-        "iterate_penetrations": 0,
-        "iterates": 0,
-        "peak_kinetic_energy": 0.0,
-    }
-
-    def monitor(snes, iteration, norm):
-        dynamics.problem.energy_problem.update_solution(snes.getSolution())
-        figures["iterates"] += 1
-        figures["iterate_penetrations"] += term.penetrations()
-        figures["minimum_gap"] = min(figures["minimum_gap"], term.minimum_gap())
-
-    dynamics.problem.solver.snes.setMonitor(monitor)
-    start = time.perf_counter()
-
-    def on_step(t, result):
-        figures["steps"] += 1
-        figures["newton_iterations"] += result.newton_iterations
-        figures["penetrations"] += term.penetrations()
-        figures["minimum_gap"] = min(figures["minimum_gap"], term.minimum_gap())
-        kinetic = dynamics.kinetic_energy
-        figures["peak_kinetic_energy"] = max(figures["peak_kinetic_energy"], kinetic)
-        # Collective calls on every rank, printing on one.
-        gap, touching = term.minimum_gap(), term.active_vertices()
-        if scene.mesh.comm.rank == 0 and figures["steps"] % 20 == 0:
-            print(
-                f"t = {t:5.2f} s  Newton {result.newton_iterations:3d}  "
-                f"min gap {gap:.2e} m  in contact {touching:3d}  kinetic {kinetic:.2e} J",
-                flush=True,
-            )
-
-    dynamics.advance(end_time, on_step)
-    figures["wall_time"] = time.perf_counter() - start
-    figures["kinetic_energy"] = dynamics.kinetic_energy
-    figures["cuts"] = dynamics.controller.cuts
-    figures["contact_force"] = term.contact_force().tolist()
-    figures["weight"] = DENSITY * SIDE**3 * abs(GRAVITY[2])
-    lowest = term.comm.allreduce(float(np.min(term.positions()[:, 2])), op=MPI.MIN)
-    figures["lowest_point"] = lowest
-    return figures
+def drop(*, comm=MPI.COMM_WORLD, output: Path | None = None, quiet: bool = True, **values):
+    """Run the checked scene with its defaults, changed by ``values``; return the summary."""
+    parameters = Parameters(**{**BowlDrop.defaults, **values})
+    return run_scene(CheckedBowlDrop, parameters, output=output, quiet=quiet, comm=comm)
 
 
 def main() -> int:
     """Run the scene and print its figures; non-zero exit on any penetration."""
     comm = MPI.COMM_WORLD
-    scene = setup(comm)
-    barrier = scene.term.barrier
+    summary = drop(comm=comm, output=Path("output") / BowlDrop.name, quiet=False)
     if comm.rank == 0:
+        centre = summary["final_centre"]
         print(
-            f"cube {SIDE} m, {CELLS}³ × 6 tetrahedra on {comm.size} rank(s); barrier "
-            f"d̂ = {barrier.distance:.3e} m, κ = {barrier.stiffness:.3e}",
+            f"{summary['steps']} steps ({summary['stepping']['cuts']} cuts), "
+            f"{summary['newton_iterations']['total']} Newton iterations on {comm.size} rank(s), "
+            f"wall {summary['wall_time_s']:.1f} s; "
+            f"barrier d̂ = {summary['barrier_distance']:.3e} m\n"
+            f"smallest gap over the run {summary['min_gap']:.3e} m; penetrations after "
+            f"accepted steps {summary['penetrations']}, at Newton iterates "
+            f"{summary['iterate_penetrations']} (of {summary['iterates']})\n"
+            f"end: kinetic energy {summary['final_kinetic_energy']:.2e} J (peak "
+            f"{summary['peak_kinetic_energy']:.2e} J), centre z = {centre[2]:.4f} m "
+            f"(a rigid cube would rest at {summary['rest_centre_height']:.4f} m)",
             flush=True,
         )
-    figures = run(scene)
-    if comm.rank == 0:
-        force = figures["contact_force"]
-        print(
-            f"{figures['steps']} steps ({figures['cuts']} cuts), "
-            f"{figures['newton_iterations']} Newton iterations, "
-            f"wall {figures['wall_time']:.1f} s\n"
-            f"smallest gap over the run {figures['minimum_gap']:.3e} m; penetrations after "
-            f"accepted steps {figures['penetrations']}, at Newton iterates "
-            f"{figures['iterate_penetrations']} (of {figures['iterates']})\n"
-            f"end: kinetic energy {figures['kinetic_energy']:.2e} J "
-            f"(peak {figures['peak_kinetic_energy']:.2e} J), lowest point "
-            f"z = {figures['lowest_point']:.4f} m, bowl force {force[2]:.1f} N "
-            f"vs weight {figures['weight']:.1f} N",
-            flush=True,
-        )
-    return 0 if figures["penetrations"] == 0 and figures["iterate_penetrations"] == 0 else 1
+    clean = summary["penetrations"] == 0 and summary["iterate_penetrations"] == 0
+    return 0 if summary["completed"] and clean else 1
 
 
 if __name__ == "__main__":

@@ -29,6 +29,10 @@ SCENES = {
     "twisting-column": "twisting_column:TwistingColumn",
     "compress-block": "compress_block:CompressBlock",
     "square-inv-free": "square_inv_free:SquareInversionFree",
+    "bowl-drop": "bowl_drop:BowlDrop",
+    "ball-hit": "ball_hit:BallHit",
+    "tight-tube": "tight_tube:TightTube",
+    "gap-squeeze": "gap_squeeze:GapSqueeze",
 }
 
 
