@@ -46,6 +46,12 @@ GALLERY = [
     ("compress-block-end", "compress-block", [], 1, "last", "the block recovered after release"),
     ("square-inv-free", "square-inv-free", [], 1, "most-inverted",
      "plain Neo-Hookean squashed with inversion-free steps"),
+    ("bowl-drop", "bowl-drop", [], 1, "last", "a cube dropped into a bowl, at rest at the bottom"),
+    ("ball-hit", "ball-hit", [], 1, "most-inverted", "a block struck by a ball: cells inverted"),
+    ("tight-tube", "tight-tube", [], 1, "most-inverted",
+     "a body pushed through a narrowing tube, squeezed at the throat"),
+    ("gap-squeeze", "gap-squeeze", [], 1, "most-inverted",
+     "a body squeezed between two cylinders"),
 ]  # fmt: skip
 
 
