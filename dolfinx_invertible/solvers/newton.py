@@ -57,6 +57,18 @@ class _SolveState:
     projected_now: bool = False
     full_step: bool = True
     previous_norm: float = math.inf
+    watchdog: _Watchdog | None = None
+    watchdog_spent: bool = False  # after one failed watch, this solve backtracks monotonically
+
+
+@dataclasses.dataclass
+class _Watchdog:
+    """The iterate before tentative full Newton steps, to go back to if they do not pay off."""
+
+    energy: float
+    slope: float  # −(directional derivative) of the full step from the origin
+    residual_norm: float
+    remaining: int  # further full steps allowed before the energy must be below the origin's
 
 
 class EnergyMinimizer:
@@ -79,6 +91,14 @@ class EnergyMinimizer:
        step of up to ``max_backtracks`` halvings qualifies, the solve ends at the stage "line
        search", unless the predicted decrease itself is below rounding, in which case the
        iterate is converged as far as floating point can tell.
+    5. A watchdog (Chamberlain et al. 1982) lets Newton take the full step when the energy
+       test rejects it but Newton is about to converge anyway: a full step to a finite energy
+       that fails the test is taken tentatively, and so are up to ``watchdog_steps`` more; as
+       soon as an iterate's energy is below the origin's by the Armijo amount, the watch ends.
+       If none is, the solve returns to the origin and backtracks from there (once per solve;
+       later steps backtrack directly). So a step plain Newton takes is taken, and the energy
+       still decreases over every watch. A solve does not end at a tentative iterate whose
+       energy is above the origin's.
 
     A problem without energy forms (a stress-only material such as IFE) has nothing to
     backtrack on; its line search is PETSc's ``l2``, which minimises the residual norm along the
@@ -129,6 +149,9 @@ class EnergyMinimizer:
         Armijo constant of the energy line search.
     max_backtracks
         Halvings of the step before the line search gives up.
+    watchdog_steps
+        Tentative full steps after the first before the energy must have decreased (step 5);
+        0 turns the watchdog off.
 
     Attributes
     ----------
@@ -153,6 +176,7 @@ class EnergyMinimizer:
         displacement_tolerance: float = 1.0e-10,
         sufficient_decrease: float = 1.0e-4,
         max_backtracks: int = 30,
+        watchdog_steps: int = 2,
     ) -> None:
         if not (math.isfinite(displacement_tolerance) and displacement_tolerance > 0.0):
             raise ValueError(
@@ -165,6 +189,9 @@ class EnergyMinimizer:
         self.displacement_tolerance = float(displacement_tolerance)
         self.sufficient_decrease = float(sufficient_decrease)
         self.max_backtracks = int(max_backtracks)
+        if int(watchdog_steps) != watchdog_steps or watchdog_steps < 0:
+            raise ValueError(f"watchdog_steps must be an integer >= 0, got {watchdog_steps!r}")
+        self.watchdog_steps = int(watchdog_steps)
         self.options_prefix = options_prefix
 
         space = problem.u.function_space
@@ -195,6 +222,8 @@ class EnergyMinimizer:
         self._backup = problem.create_vector()
         self._trial = problem.create_vector()
         self._work = problem.create_vector()
+        self._watch_origin = problem.create_vector()
+        self._watch_direction = problem.create_vector()
         self._diagonal = problem.create_vector()
         self._matrix = problem.create_matrix()
         self._matrix.setNearNullSpace(rigid_body_near_nullspace(space))
@@ -282,13 +311,17 @@ class EnergyMinimizer:
         if iteration == 0:
             state.initial_norm = fnorm
             state.tolerance = self.absolute_tolerance()
-        else:
+        elif state.watchdog is None:  # tentative steps keep the tangent they started with
             state.exact_next = state.full_step and fnorm < 0.5 * state.previous_norm
         state.previous_norm = fnorm
         rtol, _, _, max_it = snes.getTolerances()
-        if fnorm <= state.tolerance:
-            return _REASONS.CONVERGED_FNORM_ABS
-        if iteration > 0 and fnorm <= rtol * state.initial_norm:
+        small = fnorm <= state.tolerance or (iteration > 0 and fnorm <= rtol * state.initial_norm)
+        if small and state.watchdog is not None and not self._watch_paid_off(snes.getSolution()):
+            state.watchdog.remaining = 0  # a stationary point above the origin: go back
+            small = False
+        if small:
+            if fnorm <= state.tolerance:
+                return _REASONS.CONVERGED_FNORM_ABS
             return _REASONS.CONVERGED_FNORM_RELATIVE
         if iteration >= max_it:
             state.failure = (
@@ -336,7 +369,9 @@ class EnergyMinimizer:
         ok, why = self._direction_ok(ksp, y, check_inertia=exact)
         if state.projected_now:
             state.projected_iterations += 1
-        elif not ok and self.tangent_switch is not None:
+        if state.watchdog is not None and self._watched_step(x, y, ok):
+            return
+        if not ok and not state.projected_now and self.tangent_switch is not None:
             self._projected_direction(x, y, ksp)
             ok, why = self._direction_ok(ksp, y, check_inertia=False)
         if not ok:
@@ -348,14 +383,18 @@ class EnergyMinimizer:
             )
             self._fail(y, reason, stage, why)
             return
-        largest = 1.0
-        for limit in self.step_limits:
-            largest = min(largest, limit.largest_step(y, sign=-1.0))
+        largest = self._largest_step(y)
         if largest < 1.0:
             y.scale(largest)
         state.full_step = largest == 1.0
         if self.problem.has_energy:
             state.full_step = self._backtrack(x, y) and state.full_step
+
+    def _largest_step(self, y: PETSc.Vec) -> float:
+        largest = 1.0
+        for limit in self.step_limits:
+            largest = min(largest, limit.largest_step(y, sign=-1.0))
+        return largest
 
     def _projected_direction(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
         self.tangent_switch(True)
@@ -377,38 +416,122 @@ class EnergyMinimizer:
 
     def _backtrack(self, x: PETSc.Vec, y: PETSc.Vec) -> bool:
         """Shorten ``y`` until the energy test passes; return whether the full step did."""
-        problem = self.problem
+        state = self._state
         start, terms = self._energy_at(x)
+        watch = self.watchdog_steps > 0 and not state.watchdog_spent and state.full_step
+        step = self._search(
+            x, y, start, terms, self._residual.dot(y), self._residual.norm(), watch=watch
+        )
+        if step is None:
+            self._search_failed(y, self._residual.dot(y), terms)
+            return False
+        return step == 1.0
+
+    def _search(
+        self,
+        x: PETSc.Vec,
+        y: PETSc.Vec,
+        start: float,
+        terms: np.ndarray,
+        slope: float,
+        residual_norm: float,
+        *,
+        watch: bool = False,
+    ) -> float | None:
+        """Halve the step ``x → x − y`` until it passes the energy test.
+
+        ``slope`` is −(directional derivative) of Π at ``x`` along −``y``; ``residual_norm``
+        that of the residual at ``x``. Returns the accepted fraction of ``y`` (``y`` scaled to
+        it), or ``None`` with ``y`` as given. With ``watch``, a full step that fails the test
+        but has finite energy starts a watch (step 5 of the class description) and is taken.
+        """
         rounding = self._energy_rounding(terms)
-        residual_norm = self._residual.norm()
-        step = 1.0
+        fraction = 1.0
         for _ in range(self.max_backtracks + 1):
-            decrease = self._residual.dot(y)  # −(directional derivative) of this step
+            decrease = fraction * slope
             self._trial.waxpy(-1.0, y, x)
             energy, _ = self._energy_at(self._trial)
             if energy <= start - self.sufficient_decrease * decrease:
-                return step == 1.0
+                return fraction
             if abs(energy - start) <= rounding:
-                problem.F(None, self._trial, self._work)
+                self.problem.F(None, self._trial, self._work)
                 if self._work.norm() < residual_norm:
-                    return step == 1.0
+                    return fraction
+            if watch and fraction == 1.0 and math.isfinite(energy):
+                x.copy(self._watch_origin)
+                y.copy(self._watch_direction)
+                self._state.watchdog = _Watchdog(start, slope, residual_norm, self.watchdog_steps)
+                return fraction
             y.scale(0.5)
-            step *= 0.5
-        y.scale(1.0 / step)
-        if 0.5 * self._residual.dot(y) <= rounding:
+            fraction *= 0.5
+        y.scale(1.0 / fraction)
+        return None
+
+    def _search_failed(self, y: PETSc.Vec, slope: float, terms: np.ndarray) -> None:
+        """No step passed: converged at round-off if even the predicted decrease is below it."""
+        if 0.5 * slope <= self._energy_rounding(terms):
             self._state.converged_detail = (
                 "the predicted energy decrease is below the energy's rounding error and no step "
                 "reduces the residual: converged as far as floating point resolves"
             )
             y.set(0.0)
-            return False
+            return
         self._fail(
             y,
             _REASONS.DIVERGED_LINE_SEARCH,
             "line search",
-            f"no step down to {step:.1e} of the Newton step decreases the energy",
+            f"no step down to {0.5**self.max_backtracks:.1e} of the Newton step decreases the "
+            "energy",
         )
-        return False
+
+    # -- the watchdog ---------------------------------------------------------------------------
+    def _watch_paid_off(self, x: PETSc.Vec) -> bool:
+        watch = self._state.watchdog
+        energy, _ = self._energy_at(x)
+        return energy <= watch.energy - self.sufficient_decrease * watch.slope
+
+    def _watched_step(self, x: PETSc.Vec, y: PETSc.Vec, ok: bool) -> bool:
+        """At a tentative iterate: end the watch, take another full step or go back.
+
+        Returns whether the step ``y`` is decided (otherwise the iteration goes on as usual).
+        """
+        state = self._state
+        watch = state.watchdog
+        paid_off = self._watch_paid_off(x)
+        # Where the exact tangent gives no descent and nothing can replace it, the watch led
+        # somewhere the monotone search would not have gone: go back.
+        if paid_off and (ok or self.tangent_switch is not None):
+            state.watchdog = None
+            return False
+        if not paid_off and ok and watch.remaining > 0 and self._largest_step(y) == 1.0:
+            self._trial.waxpy(-1.0, y, x)
+            energy, _ = self._energy_at(self._trial)
+            if math.isfinite(energy):
+                watch.remaining -= 1
+                state.full_step = True
+                return True
+        # Back to the origin, and backtrack from there along its direction (the full step
+        # having failed, from half of it).
+        state.watchdog = None
+        state.watchdog_spent = True
+        state.full_step = False
+        origin, direction = self._watch_origin, self._watch_direction
+        start, terms = self._energy_at(origin)
+        direction.scale(0.5)
+        fraction = self._search(
+            origin, direction, start, terms, 0.5 * watch.slope, watch.residual_norm
+        )
+        if fraction is None:
+            self._search_failed(direction, 0.5 * watch.slope, terms)
+            if state.failure is None and state.converged_detail is not None:
+                direction.set(0.0)  # converged at the origin: step there
+            elif state.failure is not None:
+                y.set(0.0)
+                return True
+        # SNES steps to x − y: make that the accepted point origin − direction.
+        y.waxpy(-1.0, origin, x)
+        y.axpy(1.0, direction)
+        return True
 
     # -- solving ------------------------------------------------------------------------------
     def newton_direction(self, direction: PETSc.Vec) -> int:
