@@ -99,7 +99,7 @@ def test_summary_names_the_cheapest_runs_of_the_csv(report):
     for entry in entries:
         candidates = [
             row for row in rows
-            if row["study"] == entry["study"] and row["role"] == "run"
+            if row["study"] == entry["study"] and row["role"] == "run" and row["start"] == "scene"
             and row["completed"] == "True" and _number(row[entry["error"]]) <= entry["target"]
         ]  # fmt: skip
         if entry["run"] is None:
