@@ -2,16 +2,23 @@
 
 Each report module has ``run(output_directory, *, quick=False) -> dict``, which writes its
 figures into ``output_directory`` and returns a JSON-ready summary (the file names and the
-numbers it checked). The modules import matplotlib (Agg backend) inside their functions, so
-listing them is cheap.
+numbers it checked), and ``add_arguments(parser)`` and ``command(arguments) -> int`` for
+``python -m dolfinx_invertible report NAME``. The modules import matplotlib (Agg backend) and
+DOLFINx inside their functions, so listing them is cheap.
 
-- ``contours``: primary contours in the 2D singular-value plane (paper §3.2, Figs. 1–2).
+- ``contours``: primary contours in the 2D singular-value plane (paper §3.2, Figs. 1–2);
+- ``error-vs-time``: a work-precision study, error against wall time over meshes, elements,
+  time steps, integrators, extensions, tangents and linear-solver tolerances
+  (:mod:`.error_vs_time`, helpers in :mod:`.work_precision`).
 """
 
 #: name -> one-line description; the module of the same name implements it.
 REPORTS = {
     "contours": "primary contours of four materials in the 2D singular-value plane, with "
     "energy gradients and element trajectories (paper §3.2, Figs. 1-2)",
+    "error-vs-time": "work-precision study: error against wall time for Cook's membrane, the "
+    "twisting column and a collapse through inversion, over meshes, P1/P2, time steps, "
+    "integrators, extensions, tangents, solver tolerances and DOLFINx's own UFL route",
 }
 
 __all__ = ["REPORTS"]

@@ -25,11 +25,19 @@ Conventions. Points are signed singular values (σ₁, σ₂); the canonical poi
 signed pair through its canonical equivalent, so the traced function is the mirror image of the
 canonical wedge elsewhere; by default the polylines are clipped to the wedge and the figures
 shade the rest of the window.
+
+Scene data. ``--mattress DIR`` and ``--triangles DIR`` (:func:`run`'s ``mattress`` and
+``triangles``) take the output directory of a ``mattress-2d`` or ``triangles-2d`` run, whose
+``trajectories.npy`` (elements × steps × 2, the IFE convention) and ``summary.json`` (the
+material) replace the computed stand-ins of the stretch and relaxation figures.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import pathlib
+import sys
 import time
 from collections.abc import Sequence
 
@@ -46,12 +54,16 @@ from dolfinx_invertible.constitutive import (
 )
 
 __all__ = [
+    "DEFAULT_OUTPUT",
     "WINDOW",
+    "add_arguments",
     "branches_through_rest",
+    "command",
     "contour_residual",
     "distance_to_unit_volume",
     "fixed_corotated_distances",
     "gradient_field",
+    "load_scene_trajectories",
     "overlay_trajectories",
     "plot_contours",
     "primary_contour",
@@ -60,6 +72,9 @@ __all__ = [
     "run",
     "stretch_trajectories",
 ]
+
+#: Where ``report contours`` writes by default.
+DEFAULT_OUTPUT = pathlib.Path("results/reports/contours")
 
 #: Plotted window ((σ₁ min, σ₁ max), (σ₂ min, σ₂ max)): the canonical wedge σ₁ ≥ |σ₂| up to a
 #: stretch of 4, with its apex and part of the invalid region.
@@ -1150,7 +1165,106 @@ def _trajectory_summary(trajectories) -> dict:
     }
 
 
-def run(output_directory, *, quick: bool = False) -> dict:
+def load_scene_trajectories(directory) -> tuple[np.ndarray, Material, dict]:
+    """Read a scene run's element trajectories and the material it ran with.
+
+    Parameters
+    ----------
+    directory
+        Output directory of a scene that writes ``trajectories.npy`` (``mattress-2d``,
+        ``triangles-2d``), with its ``summary.json``.
+
+    Returns
+    -------
+    (trajectories, material, summary)
+        The array (elements × steps × 2, signed singular values in the IFE convention), the
+        :class:`~dolfinx_invertible.Material` of the run's parameters and the run's summary.
+
+    Raises
+    ------
+    ValueError
+        A file is missing or the array has the wrong shape.
+    """
+    from dolfinx_invertible.scenes.parameters import Parameters, make_material
+
+    directory = pathlib.Path(directory)
+    path, summary_path = directory / "trajectories.npy", directory / "summary.json"
+    for needed in (path, summary_path):
+        if not needed.is_file():
+            raise ValueError(
+                f"{needed} does not exist: give the output directory of a mattress-2d or "
+                f"triangles-2d run (python -m dolfinx_invertible run mattress-2d --out {directory})"
+            )
+    trajectories = np.load(path)
+    if trajectories.ndim != 3 or trajectories.shape[2] != 2 or trajectories.shape[1] < 1:
+        raise ValueError(
+            f"{path} must hold elements × steps × 2 singular values, got shape {trajectories.shape}"
+        )
+    summary = json.loads(summary_path.read_text())
+    material = make_material(Parameters(**summary["parameters"]))
+    return trajectories, material, summary
+
+
+def _scene_label(summary: dict) -> str:
+    parameters = summary["parameters"]
+    extension = "" if summary["extension"] == "none" else f" + {summary['extension'].upper()}"
+    return f"{summary['scene']}: {summary['model']}{extension}, ν = {parameters['nu']:g}"
+
+
+def _scene_figure(directories, spacing: float, title: str) -> tuple:
+    """One panel per scene run: its material's contour and every element's trajectory."""
+    runs = [load_scene_trajectories(directory) for directory in directories]
+    figure = _new_figure(figsize=(5.6 * len(runs), 5.6))
+    axes_list = np.atleast_1d(figure.subplots(1, len(runs)))
+    summaries = []
+    for axes, directory, (trajectories, material, summary) in zip(
+        axes_list, directories, runs, strict=True
+    ):
+        plot_contours(axes, material, spacing=spacing, title=_scene_label(summary), legend=False)
+        elements = len(trajectories)
+        if elements <= len(_COLORS):
+            overlay_trajectories(
+                axes,
+                trajectories,
+                colors=_COLORS[:elements],
+                labels=[f"element {index}" for index in range(elements)],
+            )
+        else:
+            # Many elements: thin lines of one colour, without start and end markers.
+            overlay_trajectories(
+                axes,
+                trajectories,
+                colors=["tab:orange"] * elements,
+                linewidth=0.5,
+                markers=False,
+            )
+        axes.legend(loc="upper left", fontsize=7, framealpha=0.92)
+        summaries.append(
+            {
+                "directory": str(directory),
+                "scene": summary["scene"],
+                "material": repr(material),
+                "completed": summary.get("completed"),
+                "elements": elements,
+                "steps": int(trajectories.shape[1]),
+                "min_sigma2": float(trajectories[..., 1].min()),
+                "inverted_elements": int(np.count_nonzero(trajectories[..., 1].min(axis=1) < 0)),
+            }
+        )
+    import textwrap
+
+    # Wrapped to the figure's width (about 12 characters per inch at this size).
+    figure.suptitle(textwrap.fill(title, width=int(12 * 5.6 * len(runs))), fontsize=11)
+    return figure, summaries
+
+
+def run(
+    output_directory,
+    *,
+    quick: bool = False,
+    mattress: Sequence | None = None,
+    triangles: Sequence | None = None,
+) -> dict:
     """Write the report's figures and return a JSON-ready summary with the analytic checks.
 
     Parameters
@@ -1160,13 +1274,19 @@ def run(output_directory, *, quick: bool = False) -> dict:
     quick
         A coarser tracing grid (spacing 0.04 instead of 0.01), shorter trajectories and
         figures at 60 instead of 100 dpi.
+    mattress, triangles
+        Output directories of ``mattress-2d`` or ``triangles-2d`` runs: their trajectories
+        replace the computed stand-ins of the stretch (relaxation) figure, one panel per run,
+        with the contour of the material it ran with.
 
     Returns
     -------
     dict
         ``figures`` (file names in ``output_directory``), ``materials``, ``spacing``,
         ``window``, ``checks`` (the analytic facts as numbers), ``stretch`` and ``relaxation``
-        (per material and element: the smallest σ₂ and the end state) and ``seconds``.
+        (per material and element: the smallest σ₂ and the end state; with scene data,
+        ``scene_runs``: per run its material, element and step counts, smallest σ₂ and how many
+        elements inverted) and ``seconds``.
     """
     begin = time.perf_counter()
     directory = pathlib.Path(output_directory)
@@ -1200,28 +1320,45 @@ def run(output_directory, *, quick: bool = False) -> dict:
         "\narrows: direction of −∇Ψ (unit length)",
     )
     figure.savefig(directory / figures["contours"], dpi=dpi)
-    figure, _ = _panels(
-        materials,
-        contours,
-        spacing,
-        "Computed stand-in for the stretched mattress: single elements, σ₁ imposed 1 → 3.5,\n"
-        "σ₂ at equilibrium with a lateral spring κ (κ = 0: free sides)",
-        trajectories=stretch,
-        labels=[f"stretch, κ = {_times_mu(factor)}" for factor in LATERAL_STIFFNESS],
-    )
+    scene_runs = {}
+    if mattress:
+        figure, scene_runs["stretch"] = _scene_figure(
+            list(mattress),
+            spacing,
+            "Mattress scene: every element's singular values over the "
+            "load steps, on the primary contour of the run's material",
+        )
+    else:
+        figure, _ = _panels(
+            materials,
+            contours,
+            spacing,
+            "Computed stand-in for the stretched mattress: single elements, σ₁ imposed 1 → 3.5,"
+            "\nσ₂ at equilibrium with a lateral spring κ (κ = 0: free sides)",
+            trajectories=stretch,
+            labels=[f"stretch, κ = {_times_mu(factor)}" for factor in LATERAL_STIFFNESS],
+        )
     figure.savefig(directory / figures["stretch"], dpi=dpi)
-    figure, _ = _panels(
-        materials,
-        contours,
-        spacing,
-        "Computed stand-in for the relaxing triangles: single free elements, implicit gradient "
-        "flow\n(projected Newton per step) from three deformations",
-        trajectories=relaxation,
-        labels=[
-            f"from ({start[0]:g}, {start[1]:g}){', inverted' if start[1] < 0 else ''}"
-            for start in RELAXATION_STARTS
-        ],
-    )
+    if triangles:
+        figure, scene_runs["relaxation"] = _scene_figure(
+            list(triangles),
+            spacing,
+            "Triangles scene: the three triangles' singular values "
+            "over time, on the primary contour of the run's material",
+        )
+    else:
+        figure, _ = _panels(
+            materials,
+            contours,
+            spacing,
+            "Computed stand-in for the relaxing triangles: single free elements, implicit "
+            "gradient flow\n(projected Newton per step) from three deformations",
+            trajectories=relaxation,
+            labels=[
+                f"from ({start[0]:g}, {start[1]:g}){', inverted' if start[1] < 0 else ''}"
+                for start in RELAXATION_STARTS
+            ],
+        )
     figure.savefig(directory / figures["relaxation"], dpi=dpi)
     _fixed_corotated_figure(ratio_branches, distances).savefig(
         directory / figures["fixed_corotated"], dpi=dpi
@@ -1234,7 +1371,71 @@ def run(output_directory, *, quick: bool = False) -> dict:
         "window": [list(WINDOW[0]), list(WINDOW[1])],
         "checks": _checks(materials, contours, spacing, artists, distances),
         "stretch": {"lateral_stiffness_over_mu": list(LATERAL_STIFFNESS)}
-        | _trajectory_summary(stretch),
-        "relaxation": {"starts": RELAXATION_STARTS.tolist()} | _trajectory_summary(relaxation),
+        | _trajectory_summary(stretch)
+        | ({"scene_runs": scene_runs["stretch"]} if "stretch" in scene_runs else {}),
+        "relaxation": {"starts": RELAXATION_STARTS.tolist()}
+        | _trajectory_summary(relaxation)
+        | ({"scene_runs": scene_runs["relaxation"]} if "relaxation" in scene_runs else {}),
         "seconds": time.perf_counter() - begin,
     }
+
+
+# --- command line -------------------------------------------------------------------------------
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of ``report contours``."""
+    parser.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=DEFAULT_OUTPUT,
+        metavar="DIR",
+        help=f"output directory (default: {DEFAULT_OUTPUT})",
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="coarser tracing grid, shorter trajectories, lower resolution (what the tests run)",
+    )
+    parser.add_argument(
+        "--mattress",
+        type=pathlib.Path,
+        action="append",
+        metavar="DIR",
+        help="output directory of a mattress-2d run (with trajectories.npy): "
+        "its element trajectories replace the stand-ins of the stretch figure "
+        "(repeatable: one panel per run)",
+    )
+    parser.add_argument(
+        "--triangles",
+        type=pathlib.Path,
+        action="append",
+        metavar="DIR",
+        help="output directory of a triangles-2d run: its trajectories replace "
+        "the stand-ins of the relaxation figure (repeatable)",
+    )
+
+
+def command(arguments: argparse.Namespace) -> int:
+    """Run ``report contours``; print the figures written."""
+    try:
+        result = run(
+            arguments.out,
+            quick=arguments.quick,
+            mattress=arguments.mattress,
+            triangles=arguments.triangles,
+        )
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    for kind in ("stretch", "relaxation"):
+        for entry in result[kind].get("scene_runs", []):
+            print(
+                f"{kind}: {entry['elements']} elements × {entry['steps']} steps from "
+                f"{entry['directory']} ({entry['inverted_elements']} inverted on the way)"
+            )
+    print(
+        f"wrote {arguments.out}/ ({', '.join(result['figures'].values())}) in "
+        f"{result['seconds']:.1f} s"
+    )
+    return 0
