@@ -17,9 +17,10 @@
 #
 # - **dolfinx**: the tutorial itself, the Neo-Hookean energy in UFL, plain Newton with LU;
 # - **drop-in**: the same script with the elastic energy's lines (ψ, P) replaced by one
-#   `Material` line, F reduced to the loads, and this package's `NonlinearProblem` (with
-#   `material=`) in place of DOLFINx's; DOLFINx's `NewtonSolver` drives it and takes the same
-#   iterates;
+#   `Material` line, F reduced to the loads, and this package's
+#   `NewtonSolverNonlinearProblem` (with `material=`) in place of DOLFINx's problem class;
+#   DOLFINx's `NewtonSolver` drives it and takes the same iterates (on DOLFINx up to 0.9,
+#   `dolfinx_invertible.NonlinearProblem` is the same class, named like DOLFINx's);
 # - **minimiser**: this package's `HyperelasticProblem` with its defaults (energy line search
 #   with the full step taken when it is good, scale-invariant stopping tests, direct solve at
 #   this size), in the tutorial's own load loop.
@@ -47,7 +48,7 @@ from dolfinx_invertible import (
     HyperelasticProblem,
     Material,
     NeoHookean,
-    NonlinearProblem,
+    NewtonSolverNonlinearProblem,
     lame,
     vector_function_space,
 )
@@ -135,25 +136,11 @@ def run_drop_in(cell_type, degree):
     mu, lmbda = (dolfinx.fem.Constant(mesh, value) for value in lame(E, NU))
     material = Material(NeoHookean(mu=mu, lam=lmbda))  # changed: the elastic term
     F = -ufl.inner(v, T) * ds(2)  # changed: F holds the loads only
-    problem = NonlinearProblem(
+    problem = NewtonSolverNonlinearProblem(
         F, u, [bc], material=material, quadrature_degree=QUADRATURE
     )  # changed: this package's class, material=
-    if hasattr(problem, "F"):  # the NewtonSolver flavour (DOLFINx up to 0.9)
-        solver = tutorial_newton(problem, mesh.comm)
-        return u, load_loop(lambda: _converged(*solver.solve(u)), T)
-    # DOLFINx 0.10+: the SNES flavour, plain Newton (no line search), LU.
-    snes = problem.solver
-    snes.getLineSearch().setType("basic")
-    snes.setTolerances(atol=1e-8, rtol=1e-8)
-    snes.getKSP().setType("preonly")
-    snes.getKSP().getPC().setType("lu")
-
-    def solve():
-        problem.solve()
-        assert snes.getConvergedReason() > 0, snes.getConvergedReason()
-        return snes.getIterationNumber()
-
-    return u, load_loop(solve, T)
+    solver = tutorial_newton(problem, mesh.comm)
+    return u, load_loop(lambda: _converged(*solver.solve(u)), T)
 
 
 def run_minimiser(cell_type, degree):

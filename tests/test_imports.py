@@ -38,3 +38,17 @@ def test_mpi4py_is_loaded_before_dolfinx(module):
         [sys.executable, "-c", CHECK.format(module=module)], capture_output=True, text=True
     )
     assert completed.returncode == 0, completed.stderr[-2000:]
+
+
+@pytest.mark.parametrize(
+    "package",
+    ["dolfinx_invertible", "dolfinx_invertible.constitutive", "dolfinx_invertible.fem",
+     "dolfinx_invertible.solvers", "dolfinx_invertible.io", "dolfinx_invertible.scenes",
+     "dolfinx_invertible.contact"],
+)  # fmt: skip
+def test_every_name_in_all_is_there(package):
+    import importlib
+
+    module = importlib.import_module(package)
+    missing = [name for name in module.__all__ if not hasattr(module, name)]
+    assert not missing

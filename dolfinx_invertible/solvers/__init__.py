@@ -18,13 +18,29 @@ from mpi4py import MPI  # noqa: F401
 
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem, external_forms
+from dolfinx_invertible.solvers.integrators import BDF2, INTEGRATORS, BackwardEuler
 from dolfinx_invertible.solvers.newton import EnergyMinimizer
 from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
-from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX, DEFAULT_PETSC_OPTIONS
-from dolfinx_invertible.solvers.problem import EnergyProblem
-from dolfinx_invertible.solvers.results import SolverError, SolveResult, snes_reason_name
-from dolfinx_invertible.solvers.step_limit import InversionFreeStep, volume_polynomial
-from dolfinx_invertible.solvers.stepping import solve_load_steps
+from dolfinx_invertible.solvers.options import (
+    DEFAULT_OPTIONS_PREFIX,
+    DEFAULT_PETSC_OPTIONS,
+    DIRECT_SOLVE_LIMIT,
+)
+from dolfinx_invertible.solvers.problem import EnergyProblem, EnergyTerm
+from dolfinx_invertible.solvers.results import (
+    STAGES,
+    SolverError,
+    SolveResult,
+    ksp_reason_name,
+    snes_reason_name,
+)
+from dolfinx_invertible.solvers.step_limit import InversionFreeStep, StepLimit, volume_polynomial
+from dolfinx_invertible.solvers.stepping import (
+    Solvable,
+    StepController,
+    solve_load_steps,
+    take_step,
+)
 
 __all__ = [
     "BDF2",

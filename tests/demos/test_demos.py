@@ -41,8 +41,8 @@ def test_cantilever_demo_runs_and_writes_four_steps(tmp_path):
     assert (tmp_path / "output" / "cantilever.xdmf").exists()
 
 
-def _run_demo(name, cwd, ranks=1, timeout=900):
-    command = [sys.executable, str(ROOT / "demos" / name)]
+def _run_demo(name, cwd, *arguments, ranks=1, timeout=900):
+    command = [sys.executable, str(ROOT / "demos" / name), *arguments]
     if ranks > 1:
         command = ["mpirun", "-n", str(ranks), *command]
     environment = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
@@ -67,3 +67,22 @@ def test_collapse_demo_under_two_ranks_recovers_with_c2(tmp_path):
     for name in ("collapse-c2", "scatter-ife"):
         summary = json.loads((tmp_path / "output" / "collapse" / name / "summary.json").read_text())
         assert summary["ranks"] == 2
+
+
+def test_ported_tutorial_takes_no_more_newton_iterations_than_dolfinx(tmp_path):
+    completed = _run_demo("port_tutorial.py", tmp_path, "--mesh", "p1-hexahedron")
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    rows = {}
+    for line in completed.stdout.splitlines():
+        words = line.split()
+        if words and words[0] in ("dolfinx", "drop-in", "minimiser"):
+            iterations = [int(word) for word in words[1 : words.index("total")]]
+            rows[words[0]] = (iterations, float(words[words.index("u_z") + 1]))
+    assert set(rows) == {"dolfinx", "drop-in", "minimiser"}, completed.stdout
+    (plain, tip), (drop_in, drop_in_tip), (ours, our_tip) = (
+        rows[name] for name in ("dolfinx", "drop-in", "minimiser")
+    )
+    assert len(plain) == len(ours) == 9
+    assert drop_in == plain and drop_in_tip == tip  # the same iterates as DOLFINx's own forms
+    assert all(mine <= theirs for mine, theirs in zip(ours, plain)), (ours, plain)
+    assert abs(our_tip - tip) <= 1e-6 * abs(tip)
