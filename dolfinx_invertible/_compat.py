@@ -242,6 +242,25 @@ def lift_residual(residual, jacobians, bcs, solution) -> None:
     dolfinx.fem.petsc.set_bc(residual, bcs, solution, -1.0)
 
 
+def snes_solve(snes, solution) -> None:
+    """``snes.solve(None, solution)``, letting an interrupt from a Python callback through.
+
+    petsc4py 3.22 and later wrap an exception raised inside a callback (residual, tangent,
+    line search) into ``PETSc.Error`` with the original as its ``__cause__``; an interrupt
+    (``KeyboardInterrupt``, or any ``BaseException`` that is not an ``Exception``) must reach the
+    caller as itself, as it does with older petsc4py.
+    """
+    try:
+        snes.solve(None, solution)
+    except Exception as error:
+        cause = error.__cause__
+        while cause is not None:
+            if not isinstance(cause, Exception):
+                raise cause from None
+            cause = cause.__cause__
+        raise
+
+
 def set_dirichlet_values(vector, bcs) -> None:
     """Overwrite the owned Dirichlet entries of a PETSc vector with the boundary values."""
     import dolfinx.fem.petsc
@@ -313,6 +332,8 @@ def create_mesh_from_cells(comm, points: np.ndarray, cells: np.ndarray, cell_nam
         import basix.ufl
 
         domain = ufl.Mesh(basix.ufl.element("Lagrange", cell_name, 1, shape=(gdim,)))
+    if DOLFINX_VERSION >= (0, 10):  # the coordinate element comes before the points
+        return dolfinx.mesh.create_mesh(comm, cells, domain, points)
     return dolfinx.mesh.create_mesh(comm, cells, points, domain)
 
 

@@ -39,7 +39,10 @@ def cached_mesh(comm, key: str, generate: Callable[[], tuple[np.ndarray, np.ndar
 
             points, cells = generate()
             staging = Path(tempfile.mkdtemp(prefix=f".{key}-", dir=folder.parent))
-            meshio.write(staging / "mesh.xdmf", meshio.Mesh(points, [("tetra", cells)]))
+            # Uncompressed: the HDF5 inside the DOLFINx wheel has no deflate filter to read with.
+            meshio.write(
+                staging / "mesh.xdmf", meshio.Mesh(points, [("tetra", cells)]), compression=None
+            )
             try:
                 os.rename(staging, folder)
             except OSError:  # another run got there first

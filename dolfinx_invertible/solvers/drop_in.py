@@ -204,7 +204,7 @@ class SNESNonlinearProblem:
         """Solve from the current ``u``; return ``u`` (check ``solver.getConvergedReason()``)."""
         _compat.petsc_vector(self.u).copy(self._x)
         _compat.set_dirichlet_values(self._x, self._problem.bcs)
-        self._snes.solve(None, self._x)
+        _compat.snes_solve(self._snes, self._x)
         self._problem.update_solution(self._x)
         return self.u
 

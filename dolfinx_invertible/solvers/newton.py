@@ -52,11 +52,10 @@ class _SolveState:
     converged_detail: str | None = None
     projected_iterations: int = 0
     # With a tangent switch: the next tangent is the exact one only in the local phase, after a
-    # full step that at least halved the residual; the projected one otherwise.
+    # full (unshortened) step; the projected one otherwise.
     exact_next: bool = True
     projected_now: bool = False
     full_step: bool = True
-    previous_norm: float = math.inf
     watchdog: _Watchdog | None = None
     watchdog_spent: bool = False  # after one failed watch, this solve backtracks monotonically
 
@@ -312,8 +311,7 @@ class EnergyMinimizer:
             state.initial_norm = fnorm
             state.tolerance = self.absolute_tolerance()
         elif state.watchdog is None:  # tentative steps keep the tangent they started with
-            state.exact_next = state.full_step and fnorm < 0.5 * state.previous_norm
-        state.previous_norm = fnorm
+            state.exact_next = state.full_step
         rtol, _, _, max_it = snes.getTolerances()
         small = fnorm <= state.tolerance or (iteration > 0 and fnorm <= rtol * state.initial_norm)
         if small and state.watchdog is not None and not self._watch_paid_off(snes.getSolution()):
@@ -590,7 +588,7 @@ class EnergyMinimizer:
         self._state = state = _SolveState()
         try:
             with self._options_in_effect():
-                self.snes.solve(None, self._x)
+                _compat.snes_solve(self.snes, self._x)
         except BaseException:
             self._restore(u_vector)
             raise

@@ -9,7 +9,8 @@
 # site-packages is not writable: numba then caches in ~/.cache/numba).
 #
 # Environment: COMPAT_LANES (default "host trixie wheel"), COMPAT_ROOT (default
-# build/compat/trixie). Exits non-zero if any run failed, after recording all of them.
+# build/compat/trixie), COMPAT_PYTEST_ARGS (extra pytest arguments, e.g. test ids, split on
+# spaces). Exits non-zero if any run failed, after recording all of them.
 set -euo pipefail
 
 here=$(cd "$(dirname "$0")" && pwd)
@@ -19,6 +20,8 @@ root=$(realpath -m "$root")
 lanes=${COMPAT_LANES:-host trixie wheel}
 results=$repo/build/compat/results
 pytest_flags=(-q -p no:cacheprovider -p pytest_counts)
+read -ra extra_arguments <<< "${COMPAT_PYTEST_ARGS:-}"
+pytest_flags+=("${extra_arguments[@]}")
 # A hung MPI run must not eat the CI budget.
 run_timeout=${COMPAT_RUN_TIMEOUT:-1800}
 
