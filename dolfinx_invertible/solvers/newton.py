@@ -204,10 +204,6 @@ class EnergyMinimizer:
         )
         options.update(solver_options)
         self.linear_solver = "direct" if solver_options["ksp_type"] == "preonly" else "iterative"
-        self._inertia_available = (
-            solver_options.get("pc_type") == "cholesky"
-            and solver_options.get("pc_factor_mat_solver_type") == "mumps"
-        )
         given = {name.lstrip("-"): value for name, value in (petsc_options or {}).items()}
         options.update(given)
         self._options = options
@@ -339,11 +335,14 @@ class EnergyMinimizer:
         """Whether the factorised tangent has negative pivots (MUMPS LDLᵀ reports its inertia).
 
         A descent direction of an indefinite tangent can still lead far away; where the
-        projected tangent is at hand, it is the better direction then.
+        projected tangent is at hand, it is the better direction then. The preconditioner in
+        effect decides, not our defaults: ``petsc_options`` or the command line may replace the
+        factorisation by a Krylov solver, whose PC has no factor to ask.
         """
-        if not self._inertia_available:
+        pc = ksp.getPC()
+        if pc.getType() != PETSc.PC.Type.CHOLESKY or pc.getFactorSolverType() != "mumps":
             return False
-        negative, _, _ = ksp.getPC().getFactorMatrix().getInertia()
+        negative, _, _ = pc.getFactorMatrix().getInertia()
         return negative > 0
 
     def _direction_ok(self, ksp: PETSc.KSP, y: PETSc.Vec, check_inertia: bool) -> tuple[bool, str]:

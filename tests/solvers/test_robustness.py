@@ -1,0 +1,191 @@
+"""Solver robustness across scales: a body at rest, scaled problems, a failing linear solver.
+
+The at-rest case is the point collapse of the collapse scene with a stiff, light material
+(E = 1e7, ρ = 1, dt = 0.01: a wave crosses the cube 30 times per step), which used to fail every
+step once the body had come to rest. Scale invariance: multiplying E, ρ and the loads by one
+factor is the same dimensionless problem (docs/design.md, "Scale"), so the Newton iterations
+must not change. The injected failure checks that a linear solver that cannot converge is
+retried with cut steps and reported at the stage "linear solve".
+"""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+import dolfinx
+import numpy as np
+import pytest
+import ufl
+
+from dolfinx_invertible import C2, Material, NeoHookean, _compat, lame
+from dolfinx_invertible.scenes import Parameters, get_scene, run_scene
+from dolfinx_invertible.solvers import HyperelasticProblem, ImplicitDynamics, SolverError
+
+SCALES = (1.0e-6, 1.0e-3, 1.0, 1.0e3, 1.0e6)
+KSP_ITERATION_CAP = ("DIVERGED_ITS", "DIVERGED_MAX_IT")
+
+
+def test_collapse_at_rest_takes_no_newton_iterations():
+    """E = 1e7, ρ = 1, dt = 0.01, 40 steps: completes, and steps at rest cost nothing."""
+    scene = get_scene("collapse")
+    parameters = Parameters(**{**scene.defaults, "E": 1.0e7, "density": 1.0, "dt": 0.01})
+    assert parameters.t_end == pytest.approx(0.4)
+    iterations = []
+    summary = run_scene(
+        scene,
+        parameters,
+        comm=MPI.COMM_SELF,
+        on_step=lambda run: iterations.append(run.result.newton_iterations),
+    )
+    assert summary["completed"] and summary["outcome"] == "recovered"
+    assert len(iterations) == 40 and summary["stepping"]["cuts"] == 0
+    # Recovery takes a few steps; from then on the body is at rest and the state it starts
+    # from already solves the step.
+    assert max(iterations[:5]) > 0
+    assert iterations[-30:] == [0] * 30
+
+
+def _bar(comm=MPI.COMM_SELF):
+    mesh = dolfinx.mesh.create_box(
+        comm,
+        [np.zeros(3), np.array([1.0, 0.25, 0.25])],
+        [4, 1, 1],
+        dolfinx.mesh.CellType.tetrahedron,
+    )
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
+    dofs = dolfinx.fem.locate_dofs_topological(space, 2, clamped)
+    end = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 1.0))
+    tags = dolfinx.mesh.meshtags(mesh, 2, end, np.full(len(end), 1, dtype=np.int32))
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=tags)
+    return mesh, space, dolfinx.fem.dirichletbc(np.zeros(3), dofs, space), ds(1)
+
+
+def _dynamic_iterations(scale: float) -> list[int]:
+    """Newton iterations per step of a clamped bar under gravity and an end traction."""
+    mesh, space, bc, end = _bar()
+    u = dolfinx.fem.Function(space)
+    mu, lam = lame(scale * 1.0e5, 0.45)
+    traction = dolfinx.fem.Constant(mesh, np.array([0.0, scale * 2.0e3, scale * 1.0e3]))
+    dynamics = ImplicitDynamics(
+        u,
+        Material(NeoHookean(mu=mu, lam=lam), C2()),
+        density=scale * 1.0e3,
+        dt=0.01,
+        bcs=[bc],
+        gravity=(0.0, 0.0, -9.81),  # a body force ρ g: scales with ρ
+        external_energy=-ufl.dot(traction, u) * end,
+    )
+    return [dynamics.step().newton_iterations for _ in range(4)]
+
+
+def _collapse_iterations(scale: float) -> list[int]:
+    """Newton iterations per step of a small cube released from F = 0.05 I."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    mu, lam = lame(scale * 1.0e3, 0.45)
+    dynamics = ImplicitDynamics(
+        u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=scale * 1.0, dt=0.02
+    )
+    return [dynamics.step().newton_iterations for _ in range(6)]
+
+
+def _static_iterations(scale: float) -> list[int]:
+    """Newton iterations per load step of the bar bent by an end traction, no inertia."""
+    mesh, space, bc, end = _bar()
+    u = dolfinx.fem.Function(space)
+    mu, lam = lame(scale * 1.0e5, 0.3)
+    traction = dolfinx.fem.Constant(mesh, np.zeros(3))
+    problem = HyperelasticProblem(
+        u,
+        Material(NeoHookean(mu=mu, lam=lam), C2()),
+        [bc],
+        external_energy=-ufl.dot(traction, u) * end,
+    )
+    iterations = []
+    for step in range(1, 4):
+        traction.value = np.array([0.0, 0.0, scale * 4.0e3 * step])
+        result = problem.solve()
+        assert result.converged
+        iterations.append(result.newton_iterations)
+    return iterations
+
+
+@pytest.mark.parametrize(
+    "iterations", [_dynamic_iterations, _collapse_iterations, _static_iterations]
+)
+def test_scaling_stiffness_density_and_loads_leaves_iterations_unchanged(iterations):
+    reference = iterations(1.0)
+    assert all(count > 0 for count in reference)
+    for scale in SCALES:
+        assert iterations(scale) == reference, f"scale {scale:g}"
+
+
+def test_injected_linear_solver_failure_is_cut_and_reported_as_linear_solve():
+    mesh, space, bc, end = _bar()
+    u = dolfinx.fem.Function(space)
+    mu, lam = lame(1.0e5, 0.45)
+    dynamics = ImplicitDynamics(
+        u,
+        Material(NeoHookean(mu=mu, lam=lam), C2()),
+        density=1.0e3,
+        dt=0.01,
+        bcs=[bc],
+        gravity=(0.0, 0.0, -9.81),
+        max_cuts=3,
+        linear_solver="iterative",
+        petsc_options={"ksp_max_it": 1},
+    )
+    with pytest.raises(SolverError) as caught:
+        dynamics.step()
+    error = caught.value
+    assert error.stage == "linear solve"
+    assert error.reason_name == "DIVERGED_LINEAR_SOLVE"
+    # KSP's -3 has two names in petsc4py (DIVERGED_ITS, DIVERGED_MAX_IT).
+    assert error.result.linear_reason_name in KSP_ITERATION_CAP
+    assert "linear solve failed" in str(error)
+    assert f"KSP {error.result.linear_reason_name}" in str(error)
+    # Retried: the first attempt and one per cut, each a smaller step.
+    assert dynamics.controller.cuts == 4
+    assert dynamics.time == 0.0 and np.all(u.x.array == 0.0)
+
+
+def test_injected_linear_solver_failure_reaches_the_scene_summary():
+    scene = get_scene("collapse")
+    parameters = Parameters(**{**scene.defaults, "resolution": 2, "t_end": 0.02})
+    summary = run_scene(
+        scene,
+        parameters,
+        comm=MPI.COMM_SELF,
+        petsc_options={"ksp_type": "cg", "pc_type": "jacobi", "ksp_max_it": 1},
+    )
+    assert not summary["completed"] and summary["outcome"] == "failed"
+    assert summary["failed_stage"] == "linear solve"
+    assert any(f"KSP {name}" in summary["reason"] for name in KSP_ITERATION_CAP)
+    assert summary["stepping"]["cuts"] == 7  # the first attempt, then 6 cuts
+
+
+@pytest.mark.parametrize("pc_type", ["jacobi", "gamg"])
+def test_krylov_solver_chosen_in_petsc_options_replaces_the_direct_default(pc_type):
+    """The inertia test of the exact tangent asks the preconditioner in effect for a factor.
+
+    The default solve of a small problem is a MUMPS factorisation; a KSP and PC given in
+    ``petsc_options`` replace it, and a PC without a factor must not be asked for one.
+    """
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    mu, lam = lame(1.0e3, 0.45)
+    dynamics = ImplicitDynamics(
+        u,
+        Material(NeoHookean(mu=mu, lam=lam), C2()),
+        density=1.0,
+        dt=0.02,
+        petsc_options={"ksp_type": "cg", "pc_type": pc_type, "ksp_rtol": 1.0e-12},
+    )
+    assert dynamics.problem.solver.linear_solver == "direct"  # what the default chose
+    for _ in range(3):
+        result = dynamics.step()
+        assert result.converged and result.linear_iterations > result.newton_iterations
+    assert dynamics.problem.solver.snes.getKSP().getPC().getType() == pc_type
