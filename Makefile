@@ -56,12 +56,13 @@ $(VENV)/.installed: pyproject.toml | system-packages
 
 test: lint test-serial test-mpi
 
+# tools/compat/record.sh keeps the counts, so `make test-compat` need not run the host lane again.
 test-serial: setup
-	$(PYTHON) -m pytest -q
+	tools/compat/record.sh serial $(PYTHON) -m pytest -q
 
 # Under MPI only the tests marked `mpi` are collected (tests/conftest.py).
 test-mpi: setup
-	$(MPIEXEC) -n 2 $(PYTHON) -m pytest $(PYTEST_MPI)
+	tools/compat/record.sh mpi $(MPIEXEC) -n 2 $(PYTHON) -m pytest $(PYTEST_MPI)
 	$(MPIEXEC) -n 3 --oversubscribe $(PYTHON) -m pytest $(PYTEST_MPI)
 
 # The suite on every supported DOLFINx: the host's 0.5.2, Debian trixie's 0.9 and the PyPI 0.11

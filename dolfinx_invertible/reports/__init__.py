@@ -9,7 +9,9 @@ DOLFINx inside their functions, so listing them is cheap.
 - ``contours``: primary contours in the 2D singular-value plane (paper §3.2, Figs. 1–2);
 - ``error-vs-time``: a work-precision study, error against wall time over meshes, elements,
   time steps, integrators, extensions, tangents and linear-solver tolerances
-  (:mod:`.error_vs_time`, helpers in :mod:`.work_precision`).
+  (:mod:`.error_vs_time`, helpers in :mod:`.work_precision`);
+- ``stability``: the outcome of every method over scenes, E, ν and dt, with the cause of every
+  cell that did not come through.
 """
 
 #: name -> one-line description; the module of the same name implements it.
@@ -19,6 +21,8 @@ REPORTS = {
     "error-vs-time": "work-precision study: error against wall time for Cook's membrane, the "
     "twisting column and a collapse through inversion, over meshes, P1/P2, time steps, "
     "integrators, extensions, tangents, solver tolerances and DOLFINx's own UFL route",
+    "stability": "outcome of every method over scenes, E, nu and dt, with the cause of every "
+    "failure (CSV, heat maps, Markdown)",
 }
 
 __all__ = ["REPORTS"]

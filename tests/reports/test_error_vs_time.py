@@ -131,20 +131,26 @@ def test_same_problem_two_ways_and_integrators_compare_as_they_must(report):
             assert _number(row["time_error"]) < _number(backward["time_error"])
             compared += 1
     assert compared >= 6
-    # Loose and tight linear tolerances: Newton's own test decides, so the solution agrees.
+    # Loose and tight linear tolerances: Newton's own test decides, so the solution agrees,
+    # where the steps agree: a dynamic run whose linear solves failed and were cut took other
+    # time steps, and so has another discretisation error.
     iterative = [row for row in rows.values() if row["linear_solver"] == "iterative"]
     direct = {
         row["study"]: row for row in rows.values()
         if row["sweep"] == "ksp_rtol" and row["linear_solver"] == "auto"
     }  # fmt: skip
     assert len(iterative) >= 4 and set(direct) == {"cook-membrane", "twisting-column"}
+    compared_studies = set()
     for row in iterative:
         twin = direct[row["study"]]
         assert (row["degree"], row["resolution"], row["dt"]) == (
             twin["degree"], twin["resolution"], twin["dt"]
         )  # fmt: skip
-        if row["completed"] == "True":
+        same_steps = (row["time_steps"], row["cuts"]) == (twin["time_steps"], twin["cuts"])
+        if row["completed"] == "True" and same_steps:
             assert _number(row["error"]) == pytest.approx(_number(twin["error"]), rel=1e-3)
+            compared_studies.add(row["study"])
+    assert compared_studies == {"cook-membrane", "twisting-column"}
 
 
 def test_reference_beside_the_published_value_and_figures(report):

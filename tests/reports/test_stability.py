@@ -1,0 +1,225 @@
+"""The stability study: its matrix, its cause diagnosis, and ``report stability --quick``.
+
+The quick report runs as a subprocess of the command line, as a user would; its CSV must have
+one row per cell of the quick matrix with the documented columns, every cell that did not come
+through must carry a cause, and the Markdown must state it.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from dolfinx_invertible.reports import REPORTS, stability
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def test_matrix_is_the_product_of_its_axes():
+    cells = stability.matrix()
+    assert len(cells) == (
+        len(stability.SCENES)
+        * len(stability.METHODS)
+        * len(stability.POISSON_RATIOS)
+        * len(stability.YOUNGS_MODULI)
+        * len(stability.TIME_STEPS)
+    )
+    assert len({cell.key for cell in cells}) == len(cells)
+    quick = stability.matrix(quick=True)
+    assert {cell.key for cell in quick} <= {cell.key for cell in cells}
+    assert {cell.scene for cell in quick} == set(stability.SCENES)
+    assert {cell.method for cell in quick} == {method.name for method in stability.METHODS}
+    assert "stability" in REPORTS
+
+
+def test_cell_parameters_are_dimensionless_in_size_and_time():
+    for cell in stability.matrix():
+        parameters = cell.parameters()
+        c = math.sqrt(parameters["E"] / parameters["density"])
+        unit = parameters["size"] / c
+        assert parameters["size"] == stability.SIZE and parameters["density"] == stability.DENSITY
+        assert cell.dimensionless_step == pytest.approx(parameters["dt"] / unit)
+        # At least the minimum number of steps, and the scene's end time in L/c otherwise.
+        steps = parameters["t_end"] / parameters["dt"]
+        assert steps >= stability.MINIMUM_STEPS * (1 - 1e-12)
+        setup = stability.SCENE_SETUPS[cell.scene]
+        if setup.end_time is not None:
+            expected = max(setup.end_time, stability.MINIMUM_STEPS * cell.dimensionless_step)
+            assert parameters["t_end"] / unit == pytest.approx(expected)
+    # The same dimensionless step for two (E, dt) pairs: identical scene parameters but for
+    # the scales E, dt and t_end.
+    first = stability.Cell("collapse", "nh-c2", 0.45, 1.0e5, 1.0e-2).parameters()
+    second = stability.Cell("collapse", "nh-c2", 0.45, 1.0e7, 1.0e-3).parameters()
+    assert first["t_end"] / first["dt"] == pytest.approx(second["t_end"] / second["dt"])
+    differing = {name for name in first if first[name] != second[name]}
+    assert differing == {"E", "dt", "t_end"}
+
+
+def _failure(**values):
+    record = {
+        "scene": "stretch-bar",
+        "method": "corotated",
+        "outcome": "failed",
+        "failed_stage": "iteration cap",
+        "snes_reason": "DIVERGED_MAX_IT",
+        "failed_time_star": 2.0,
+        "retry_step": 1.0e-6,
+        "step_floor": 2.0e-6,
+        "retry": "iteration cap",
+    }
+    record.update(values)
+    return record
+
+
+@pytest.mark.parametrize(
+    ("values", "cause"),
+    [
+        ({"kink_gap": 1.0e-9, "retry": "converged"}, "kink σ₂+σ₃=0"),
+        ({"kink_gap": 0.2, "cap_last": 1.0e-6, "method": "nh-inversion-free"}, "inversion-free"),
+        ({"kink_gap": 0.2, "residual_drop_last10": 0.1}, "iteration cap while converging"),
+        ({"kink_gap": 0.2, "residual_drop_last10": 2.0, "retry": "converged"}, "step-size floor"),
+        ({"retry": "converged", "retry_step": 1.0e-3}, "cut budget"),
+        (
+            {"failed_stage": "linear solve", "tangent_condition": 1.0e16, "method": "nh-ife"},
+            "nearly singular tangent",
+        ),
+        ({"residual_drop_last10": 2.0}, "solver (iteration cap)"),
+    ],
+)
+def test_failures_are_told_apart_by_their_data(values, cause):
+    found, detail = stability.diagnose(_failure(**values))
+    assert found.startswith(cause)
+    assert "t = 2 L/c" in detail
+
+
+def _continued(inverted, distance):
+    return {"continued": "completed", "continued_inverted": inverted,
+            "continued_rest_distance": distance}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("continued", "cause"),
+    [
+        (_continued(0, 1.0e-5), "end time too short"),
+        (_continued(3, 0.5), "inverted equilibrium"),
+        (_continued(0, 0.3), "distorted equilibrium"),
+        ({**_continued(0, 0.3), "continued_overlap": 12}, "self-overlapping equilibrium"),
+        ({**_continued(5, 0.5), "largest_singular_value": 1e-6}, "collapsed equilibrium"),
+        ({**_continued(5, 9.0), "inverted_energy_min": -3.0}, "energy below rest when inverted"),
+        ({**_continued(5, 0.5), "inverted_energy_min": -3.0}, "inverted equilibrium"),
+        ({"continued": "failed (line search)"}, "continuation failed"),
+    ],
+)
+def test_relaxations_that_did_not_recover_are_told_apart_by_their_continuation(continued, cause):
+    record = {"scene": "scatter", "method": "nh-c2", "outcome": "stalled_inverted"}
+    record.update(final_inverted=2, t_end_star=6.0)
+    record["rest_distance"] = continued.get("continued_rest_distance", 0.4)
+    record.update(continued)
+    assert stability.diagnose(record)[0] == cause
+
+
+def test_overlap_count_finds_a_body_folded_through_itself():
+    from mpi4py import MPI
+
+    import dolfinx
+    import numpy as np
+
+    from dolfinx_invertible import _compat
+
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 3, 3, 3)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u.interpolate(lambda x: np.stack([0.3 * x[0] * x[1], 0.1 * x[2], np.zeros_like(x[0])]))
+    assert stability.overlapping_cells(u) == 0
+    # A rigid rotation moves every cell and overlaps nothing.
+    u.interpolate(lambda x: np.stack([-x[1] - x[0], x[0] - x[1], np.zeros_like(x[0])]))
+    assert stability.overlapping_cells(u) == 0
+    # Fold the half x > 1/2 back over the other: its cells lie on the first half's.
+    u.interpolate(
+        lambda x: np.stack([np.where(x[0] > 0.5, 1.0 - 2.0 * x[0], 0.0), 0 * x[1], 0 * x[2]])
+    )
+    assert stability.overlapping_cells(u) > 0
+
+
+def test_inverted_energy_minimum_finds_the_energies_below_rest():
+    from dolfinx_invertible.scenes.parameters import Parameters
+
+    def lowest(method, nu):
+        cell = stability.Cell("collapse", method, nu, 1.0e5, 1.0e-2)
+        return stability.inverted_energy_minimum(Parameters(**cell.parameters()))
+
+    # Neo-Hookean + C1 with k = 20 E: inverted states below rest from λ/μ ≈ 49 on.
+    assert lowest("nh-c1", 0.45) > 0.0 and lowest("nh-c1", 0.499) < -1.0e3
+    assert all(lowest("nh-c2", nu) > 0.0 for nu in stability.POISSON_RATIOS)
+    assert lowest("nh-ife", 0.45) is None and lowest("nh-ufl", 0.45) is None
+
+
+def test_quick_report_from_the_command_line(tmp_path):
+    out = tmp_path / "stability"
+    environment = dict(os.environ)
+    environment["PYTHONPATH"] = os.pathsep.join(
+        [str(ROOT), *filter(None, [environment.get("PYTHONPATH")])]
+    )
+    completed = subprocess.run(
+        [sys.executable, "-m", "dolfinx_invertible", "report", "stability", "--quick"]
+        + ["--out", str(out), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env=environment,
+        cwd=tmp_path,
+    )
+    assert completed.returncode == 0, completed.stdout[-3000:] + completed.stderr[-3000:]
+    with (out / "stability.csv").open() as stream:
+        reader = csv.DictReader(stream)
+        assert tuple(reader.fieldnames) == stability.COLUMNS
+        rows = list(reader)
+    cells = stability.matrix(quick=True)
+    keys = {
+        (row["scene"], row["method"], float(row["nu"]), float(row["E"]), float(row["dt"]))
+        for row in rows
+    }
+    assert len(rows) == len(cells) and keys == {cell.key for cell in cells}
+    assert all(row["outcome"] in stability._DISPLAY for row in rows)
+    markdown = (out / "stability.md").read_text()
+    assert "--quick" in markdown and "## Every cell that did not come through" in markdown
+    labels = {method.name: method.label for method in stability.METHODS}
+    failure_lines = [line for line in markdown.splitlines() if line.startswith("| ")]
+    for row in rows:
+        if row["outcome"] in ("recovered", "completed"):
+            continue
+        assert row["cause"], row
+        assert row["cause_detail"] or row["outcome"] == "does_not_apply", row
+        matching = [
+            line
+            for line in failure_lines
+            if line.startswith(f"| {row['scene']} | {labels[row['method']]} | ")
+            and f"| {float(row['nu']):g} | {float(row['E']):g} | {float(row['dt']):g} |" in line
+        ]
+        assert len(matching) == 1, row
+        assert f"**{row['cause']}**" in matching[0]
+    for scene in stability.SCENES:
+        figure = out / f"stability_{scene.replace('-', '_')}.png"
+        assert figure.stat().st_size > 10_000
+    # No NaN anywhere; no lost cells.
+    assert not any(row["outcome"] in ("nan", "crashed", "timeout") for row in rows)
+    assert not any(row["nan"] == "True" for row in rows)
+    # The quick matrix has the same dimensionless problem twice (dt·c/L = 1): the same outcome
+    # and Newton iterations within 3 % (E and dt differ by factors that are not powers of two,
+    # so the two runs round differently, and a solve that ends at its tolerance may take one
+    # iteration more).
+    by_problem = {}
+    for row in rows:
+        key = (row["scene"], row["method"], row["nu"], round(float(row["dt_star"]), 9))
+        by_problem.setdefault(key, []).append(row)
+    pairs = [group for group in by_problem.values() if len(group) == 2]
+    assert pairs
+    for first, second in pairs:
+        assert first["outcome"] == second["outcome"], (first, second)
+        newton = int(first["newton_total"]), int(second["newton_total"])
+        assert abs(newton[0] - newton[1]) <= 0.03 * max(newton), (first, second)
