@@ -6,10 +6,14 @@ VENV := .venv
 PYTHON := $(VENV)/bin/python
 APT_PACKAGES := python3-dolfinx-real python3-numba python3-gmsh python3-meshio python3-pytest \
 	python3-matplotlib python3-tqdm python3-scipy python3-h5py python3-venv python3-pip \
-	python3-setuptools \
+	python3-setuptools python3-pytest-xdist \
 	openmpi-bin paraview python3-paraview xvfb
 MPIEXEC := mpirun
 PYTEST_MPI := -q -p no:cacheprovider
+# The serial suite runs on one pytest worker per core, each test file on one worker (its module
+# fixtures, such as a report the file's tests read, are built once).
+TEST_WORKERS ?= $(shell nproc)
+PYTEST_SERIAL := -q -n $(TEST_WORKERS) --dist loadfile
 
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
@@ -58,7 +62,7 @@ test: lint test-serial test-mpi
 
 # tools/compat/record.sh keeps the counts, so `make test-compat` need not run the host lane again.
 test-serial: setup
-	tools/compat/record.sh serial $(PYTHON) -m pytest -q
+	tools/compat/record.sh serial $(PYTHON) -m pytest $(PYTEST_SERIAL)
 
 # Under MPI only the tests marked `mpi` are collected (tests/conftest.py).
 test-mpi: setup

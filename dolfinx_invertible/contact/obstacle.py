@@ -57,6 +57,15 @@ class Obstacle:
             )
         return array
 
+    def _path_in_body(self, x, direction, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return the points and the directions of paths ``x + α · direction`` in the body frame."""
+        x = self._points("x", x)
+        p = self._points("direction", direction)
+        if p.shape != x.shape:
+            raise ValueError(f"direction has shape {p.shape}, x has shape {x.shape}")
+        y, R = self._to_body(x, t)
+        return y, (p if R is None else p @ R)
+
     def _to_body(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray | None]:
         if self.motion is None:
             return x, None
@@ -88,12 +97,7 @@ class Obstacle:
         ``x`` and ``direction`` are (n, d). Returns (n,): ``inf`` where the path never reaches
         the obstacle, 0 where the point is not outside it to begin with.
         """
-        x = self._points("x", x)
-        p = self._points("direction", direction)
-        if p.shape != x.shape:
-            raise ValueError(f"direction has shape {p.shape}, x has shape {x.shape}")
-        y, R = self._to_body(x, t)
-        q = p if R is None else p @ R
+        y, q = self._path_in_body(x, direction, t)
         c0, c1, c2 = self._crossing_polynomial(y, q)
         roots = first_crossing(c0, c1, c2)
         roots[~(self._gap(y) > 0.0)] = 0.0

@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-__all__ = ["RESERVED_RECORD_KEYS", "StepLog", "json_value"]
+__all__ = ["RESERVED_RECORD_KEYS", "StepLog", "json_ready", "json_value"]
 
 #: Keys the log writes itself.
 RESERVED_RECORD_KEYS = ("step", "time")
@@ -82,3 +82,22 @@ def json_value(value, key: str):
     if isinstance(value, (list, tuple)):
         return [json_value(item, key) for item in value]
     raise TypeError(f"record[{key!r}] = {value!r} is not JSON data")
+
+
+def json_ready(value):
+    """Return ``value`` with NumPy values as Python ones and non-finite floats as None.
+
+    Lenient where :func:`json_value` is strict: other objects pass through unchanged, so that a
+    summary written after a failure is written whatever it holds.
+    """
+    if isinstance(value, Mapping):
+        return {str(key): json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return json_ready(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

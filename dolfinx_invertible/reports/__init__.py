@@ -25,4 +25,18 @@ REPORTS = {
     "failure (CSV, heat maps, Markdown)",
 }
 
-__all__ = ["REPORTS"]
+__all__ = ["REPORTS", "add_output_arguments"]
+
+
+def add_output_arguments(parser, default_output, quick_help: str) -> None:
+    """Add the options every report has: ``--out DIR`` and ``--quick``."""
+    import pathlib
+
+    parser.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=pathlib.Path(default_output),
+        metavar="DIR",
+        help=f"output directory (default: {default_output})",
+    )
+    parser.add_argument("--quick", action="store_true", help=quick_help)

@@ -52,6 +52,7 @@ from dolfinx_invertible.constitutive import (
     NeoHookean,
     lame,
 )
+from dolfinx_invertible.reports import add_output_arguments
 
 __all__ = [
     "DEFAULT_OUTPUT",
@@ -1385,17 +1386,10 @@ def run(
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``report contours``."""
-    parser.add_argument(
-        "--out",
-        type=pathlib.Path,
-        default=DEFAULT_OUTPUT,
-        metavar="DIR",
-        help=f"output directory (default: {DEFAULT_OUTPUT})",
-    )
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="coarser tracing grid, shorter trajectories, lower resolution (what the tests run)",
+    add_output_arguments(
+        parser,
+        DEFAULT_OUTPUT,
+        "coarser tracing grid, shorter trajectories, lower resolution (what the tests run)",
     )
     parser.add_argument(
         "--mattress",

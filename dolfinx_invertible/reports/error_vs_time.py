@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from dolfinx_invertible.reports import add_output_arguments
 from dolfinx_invertible.reports.work_precision import (
     cheapest,
     observed_order,
@@ -918,18 +919,6 @@ def _figures(directory: pathlib.Path, rows, result, dpi: int) -> dict[str, str]:
     return figures
 
 
-def _json_ready(value):
-    if isinstance(value, dict):
-        return {str(key): _json_ready(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(item) for item in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def run(
     output_directory,
     *,
@@ -1010,6 +999,8 @@ def write_results(
     """
     from mpi4py import MPI
 
+    from dolfinx_invertible.io.step_log import json_ready
+
     comm = MPI.COMM_WORLD
     directory = pathlib.Path(output_directory)
     orders = _orders(rows)
@@ -1047,9 +1038,9 @@ def write_results(
     if comm.rank == 0:
         (directory / files["markdown"]).write_text(_markdown(result, rows))
         (directory / files["json"]).write_text(
-            json.dumps(_json_ready(result), indent=1, allow_nan=False) + "\n"
+            json.dumps(json_ready(result), indent=1, allow_nan=False) + "\n"
         )
-    return _json_ready(result)
+    return json_ready(result)
 
 
 # --- command line -------------------------------------------------------------------------------
@@ -1057,17 +1048,8 @@ def write_results(
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``report error-vs-time``."""
-    parser.add_argument(
-        "--out",
-        type=pathlib.Path,
-        default=DEFAULT_OUTPUT,
-        metavar="DIR",
-        help=f"output directory (default: {DEFAULT_OUTPUT})",
-    )
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="the small study (about 2 minutes on 2 cores; the tests run it)",
+    add_output_arguments(
+        parser, DEFAULT_OUTPUT, "the small study (about 2 minutes on 2 cores; the tests run it)"
     )
     parser.add_argument(
         "--study",

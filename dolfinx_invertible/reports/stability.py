@@ -204,6 +204,17 @@ class Cell:
         """The cell's identity (scene, method, ν, E, dt)."""
         return (self.scene, self.method, self.nu, self.E, self.dt)
 
+    def identity(self) -> dict[str, Any]:
+        """Return the first columns of the cell's record: its axes and dt·c/L."""
+        return {
+            "scene": self.scene,
+            "method": self.method,
+            "nu": self.nu,
+            "E": self.E,
+            "dt": self.dt,
+            "dt_star": self.dimensionless_step,
+        }
+
     @property
     def wave_speed(self) -> float:
         """The wave speed c = √(E/ρ) [m/s]."""
@@ -630,12 +641,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     parameters = Parameters(**cell.parameters())
     method = _METHODS[cell.method]
     record: dict[str, Any] = {
-        "scene": cell.scene,
-        "method": cell.method,
-        "nu": cell.nu,
-        "E": cell.E,
-        "dt": cell.dt,
-        "dt_star": cell.dimensionless_step,
+        **cell.identity(),
         "t_end_star": parameters.t_end / cell.time_unit,
         "resolution": parameters.resolution,
         "damping": parameters.damping,
@@ -1098,16 +1104,7 @@ def _lost_cell(cell: Cell, outcome: str, timeout: float, tail: str) -> dict[str,
         if outcome == "timeout"
         else "the worker process died: " + (tail.splitlines()[-1] if tail else "no output")
     )
-    record = {
-        "scene": cell.scene,
-        "method": cell.method,
-        "nu": cell.nu,
-        "E": cell.E,
-        "dt": cell.dt,
-        "dt_star": cell.dimensionless_step,
-        "outcome": outcome,
-        "reason": reason,
-    }
+    record = {**cell.identity(), "outcome": outcome, "reason": reason}
     record["cause"], record["cause_detail"] = diagnose(record)
     return record
 
@@ -1119,6 +1116,7 @@ def _worker() -> int:
 
     from mpi4py import MPI  # noqa: F401 (initialised before DOLFINx)
 
+    from dolfinx_invertible.io.step_log import json_ready
     from dolfinx_invertible.scenes.runner import RunInterrupted
 
     for name in ("ffcx", "UFL", "dolfinx", "numba"):
@@ -1140,7 +1138,7 @@ def _worker() -> int:
 
             traceback.print_exc()
             record = _lost_cell(cell, "crashed", 0.0, f"{type(error).__name__}: {error}")
-        output.write(_RESULT + json.dumps(_json_ready(record)) + "\n")
+        output.write(_RESULT + json.dumps(json_ready(record)) + "\n")
         output.flush()
     return 0
 
@@ -1658,13 +1656,15 @@ def run(
     records_path = directory / "cells.jsonl"
     done: dict[tuple, dict[str, Any]] = {}
     if resume and records_path.exists():
+        from dolfinx_invertible.io.step_log import json_ready
+
         wanted = {cell.key: cell for cell in cells}
         for line in records_path.read_text().splitlines():
             with contextlib.suppress(ValueError, KeyError):
                 record = json.loads(line)
                 key = (record["scene"], record["method"], record["nu"], record["E"], record["dt"])
                 cell = wanted.get(key)
-                if cell is not None and record.get("parameters") == _json_ready(cell.parameters()):
+                if cell is not None and record.get("parameters") == json_ready(cell.parameters()):
                     # The causes are read from the data again: the diagnosis may have changed.
                     record["cause"], record["cause_detail"] = diagnose(record)
                     done[key] = record
@@ -1742,17 +1742,13 @@ def _load_average() -> float | None:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``report stability``."""
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="the quick subset: every scene and method at nu = 0.45, E = 1e5, dt = 1e-2, and "
-        "C2 and corotated also at E = 1e7, dt = 1e-3 (the same dt c/L)",
-    )
-    parser.add_argument(
-        "--out",
-        type=pathlib.Path,
-        default=pathlib.Path("results/reports/stability"),
-        help="output directory (default results/reports/stability)",
+    from dolfinx_invertible.reports import add_output_arguments
+
+    add_output_arguments(
+        parser,
+        "results/reports/stability",
+        "the quick subset: every scene and method at nu = 0.45, E = 1e5, dt = 1e-2, and C2 and "
+        "corotated also at E = 1e7, dt = 1e-3 (the same dt c/L)",
     )
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     parser.add_argument(
@@ -1806,20 +1802,3 @@ def command(arguments: argparse.Namespace) -> int:
     )
     lost = result["outcomes"].get("crashed", 0) + result["outcomes"].get("timeout", 0)
     return 1 if lost else 0
-
-
-def _json_ready(value):
-    if isinstance(value, dict):
-        return {str(key): _json_ready(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(item) for item in value]
-    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-if __name__ == "__main__":
-    if sys.argv[1:] == ["--worker"]:
-        sys.exit(_worker())

@@ -32,6 +32,7 @@ import numpy as np
 
 from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
 from dolfinx_invertible.fem.spaces import vector_function_space
+from dolfinx_invertible.io.step_log import json_ready
 from dolfinx_invertible.io.xdmf import ResultWriter
 from dolfinx_invertible.scenes.outcome import relaxation_outcome, rest_distance
 from dolfinx_invertible.scenes.parameters import PROJECT_CHOICES, Parameters, make_material
@@ -132,12 +133,6 @@ def _write_json(path: Path, data: dict) -> None:
     temporary = path.with_name(f".{path.name}.tmp")
     temporary.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
     os.replace(temporary, path)
-
-
-def _finite(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 class _Signals:
@@ -377,8 +372,8 @@ def run_scene(
     if output is not None and comm.rank == 0:
         for name, data in scene.files(run).items():
             np.save(output / name, np.asarray(data))
-        _write_json(output / "summary.json", _json_ready(summary_data))
-    return _json_ready(summary_data)
+        _write_json(output / "summary.json", json_ready(summary_data))
+    return json_ready(summary_data)
 
 
 def _record(run: Run, writer: ResultWriter | None, result: SolveResult | None) -> None:
@@ -443,13 +438,3 @@ def _summary(
         "svd_share": svd_share,
         "stepping": stepping,
     }
-
-
-def _json_ready(value):
-    if isinstance(value, dict):
-        return {str(key): _json_ready(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(item) for item in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    return _finite(value)

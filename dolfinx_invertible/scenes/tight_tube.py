@@ -186,12 +186,7 @@ class Funnel(Obstacle):
         through the hole there, in which case it meets the cone's wall where it leaves the
         cone from that point on.
         """
-        x = self._points("x", x)
-        p = self._points("direction", direction)
-        if p.shape != x.shape:
-            raise ValueError(f"direction has shape {p.shape}, x has shape {x.shape}")
-        y, R = self._to_body(x, t)
-        q = p if R is None else p @ R
+        y, q = self._path_in_body(x, direction, t)
         sigma, _ = self._coordinates(y)
         along = q @ self.axis
         crossing = np.full(len(y), math.inf)

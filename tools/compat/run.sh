@@ -23,6 +23,8 @@ results=$repo/build/compat/results
 pytest_flags=(-q -p no:cacheprovider -p pytest_counts)
 read -ra extra_arguments <<< "${COMPAT_PYTEST_ARGS:-}"
 pytest_flags+=("${extra_arguments[@]}")
+# Serially, one pytest worker per core (each test file on one worker), as `make test` does.
+serial_flags=(-n "$(nproc)" --dist loadfile)
 # A hung MPI run must not eat the CI budget.
 run_timeout=${COMPAT_RUN_TIMEOUT:-1800}
 
@@ -53,13 +55,13 @@ common_env=(
 # run_pytest LANE MODE: pytest over the whole suite in LANE, serially or on two MPI ranks.
 run_pytest() {
   local lane=$1 mode=$2
-  local counts=$results/$lane-$mode.counts launcher=()
+  local counts=$results/$lane-$mode.counts launcher=() flags=("${pytest_flags[@]}")
+  [ "$mode" = serial ] && flags+=("${serial_flags[@]}")
   case $lane in
     host)
       [ "$mode" = mpi ] && launcher=(mpirun -n 2)
       (cd "$repo" && env "${common_env[@]}" COMPAT_COUNTS="$counts" PYTHONPATH="$here" \
-        timeout "$run_timeout" "${launcher[@]}" "$repo/.venv/bin/python" -m pytest \
-        "${pytest_flags[@]}")
+        timeout "$run_timeout" "${launcher[@]}" "$repo/.venv/bin/python" -m pytest "${flags[@]}")
       ;;
     trixie | wheel)
       local python=/usr/bin/python3 lane_env=()
@@ -80,7 +82,7 @@ run_pytest() {
       fi
       COMPAT_CWD=/repo compat_chroot "$root" "${common_env[@]}" "${lane_env[@]}" \
         COMPAT_COUNTS="/repo/${counts#"$repo/"}" "${source_env[@]}" \
-        timeout "$run_timeout" "${launcher[@]}" "$python" -m pytest "${pytest_flags[@]}"
+        timeout "$run_timeout" "${launcher[@]}" "$python" -m pytest "${flags[@]}"
       ;;
   esac
 }
