@@ -132,8 +132,8 @@ def test_default_quadrature_degree_per_cell_type():
 
 
 def test_p1_hexahedron_tangent_is_not_singular():
-    """One point per P1 hexahedron (the old default) leaves hourglass modes: with the default
-    rule the clamped tangent is positive definite (its smallest eigenvalue is clearly > 0)."""
+    """One point per P1 hexahedron leaves hourglass modes: with the default rule the clamped
+    tangent is positive definite (its smallest eigenvalue is clearly > 0)."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("dense eigenvalues of the serial matrix")
     mesh = dolfinx.mesh.create_unit_cube(

@@ -1,8 +1,9 @@
 """Solver robustness across scales: a body at rest, scaled problems, a failing linear solver.
 
 The at-rest case is the point collapse of the collapse scene with a stiff, light material
-(E = 1e7, ρ = 1, dt = 0.01: a wave crosses the cube 30 times per step), which used to fail every
-step once the body had come to rest. Scale invariance: multiplying E, ρ and the loads by one
+(E = 1e7, ρ = 1, dt = 0.01: a wave crosses the cube 30 times per step): once the body has come
+to rest, every step starts at its solution, where stopping tests and a line search that are not
+scaled to the problem fail. Scale invariance: multiplying E, ρ and the loads by one
 factor is the same dimensionless problem (docs/design.md, "Scale"), so the Newton iterations
 must not change. The injected failure checks that a linear solver that cannot converge is
 retried with cut steps and reported at the stage "linear solve".
