@@ -4,14 +4,26 @@ Under MPI (more than one rank) only the tests marked ``mpi`` are collected: the 
 nothing that a parallel run would add, and deselecting them keeps the parallel report short.
 """
 
+import os
+
 import pytest
 
-try:
-    # Before any test module imports dolfinx: _compat readies the platform (on the PyPI DOLFINx
-    # wheel its MPI library must be loaded first). The constitutive tests run without DOLFINx.
-    import dolfinx_invertible._compat  # noqa: F401
-except ImportError:
-    pass
+
+def pytest_configure(config):
+    """Ready the platform before any test module imports DOLFINx, except in xdist's controller.
+
+    ``_compat`` loads the MPI library the PyPI DOLFINx wheel needs first. The constitutive tests
+    run without DOLFINx. xdist's controller runs no tests and must not start MPI: its workers
+    would inherit the MPI singleton's environment, and an ``mpirun`` a test starts from there
+    exits at once.
+    """
+    controller = bool(getattr(config.option, "numprocesses", None))
+    if controller and "PYTEST_XDIST_WORKER" not in os.environ:
+        return
+    try:
+        import dolfinx_invertible._compat  # noqa: F401
+    except ImportError:
+        pass
 
 
 def _comm_size() -> int:
