@@ -1802,3 +1802,8 @@ def command(arguments: argparse.Namespace) -> int:
     )
     lost = result["outcomes"].get("crashed", 0) + result["outcomes"].get("timeout", 0)
     return 1 if lost else 0
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--worker"]:
+        sys.exit(_worker())
