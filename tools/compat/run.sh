@@ -7,7 +7,8 @@
 # then record the counts in tools/compat/results.json and the table in docs/compatibility.md.
 # The host and trixie lanes test the source tree; the wheel lane tests this package installed
 # from its built wheel into the venv's site-packages, mounted read-only (as for a user whose
-# site-packages is not writable: numba then caches in ~/.cache/numba).
+# site-packages is not writable: numba then caches in ~/.cache/numba). The trixie and wheel
+# lanes run side by side.
 #
 # Environment: COMPAT_LANES (default "host trixie wheel"), COMPAT_ROOT (default
 # build/compat/trixie), COMPAT_PYTEST_ARGS (extra pytest arguments, e.g. test ids, split on
@@ -23,8 +24,10 @@ results=$repo/build/compat/results
 pytest_flags=(-q -p no:cacheprovider -p pytest_counts)
 read -ra extra_arguments <<< "${COMPAT_PYTEST_ARGS:-}"
 pytest_flags+=("${extra_arguments[@]}")
-# Serially, one pytest worker per core (each test file on one worker), as `make test` does.
+# Serially, one pytest worker per core (each test file on one worker), as `make test` does; but
+# the DOLFINx lanes run side by side, one pytest process each, when there are two of them.
 serial_flags=(-n "$(nproc)" --dist loadfile)
+side_by_side=0
 # A hung MPI run must not eat the CI budget.
 run_timeout=${COMPAT_RUN_TIMEOUT:-1800}
 
@@ -34,7 +37,7 @@ source "$here/chroot.sh"
 "$here/build-root.sh" "$root"
 
 compat_mount "$root" "$repo"
-trap 'compat_unmount_all "$root"' EXIT
+trap 'kill $(jobs -p) 2>/dev/null || true; wait || true; compat_unmount_all "$root"' EXIT
 # A signal ends the script through exit, so the EXIT trap unmounts in every case.
 trap 'exit 130' INT
 trap 'exit 143' TERM
@@ -56,7 +59,9 @@ common_env=(
 run_pytest() {
   local lane=$1 mode=$2
   local counts=$results/$lane-$mode.counts launcher=() flags=("${pytest_flags[@]}")
-  [ "$mode" = serial ] && flags+=("${serial_flags[@]}")
+  if [ "$mode" = serial ] && { [ "$lane" = host ] || [ "$side_by_side" = 0 ]; }; then
+    flags+=("${serial_flags[@]}")
+  fi
   case $lane in
     host)
       [ "$mode" = mpi ] && launcher=(mpirun -n 2)
@@ -166,13 +171,9 @@ exit_status() {
   python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["exitstatus"])' "$1"
 }
 
-failed=0
-for lane in $lanes; do
-  describe "$lane" > "$results/$lane.versions.json" || echo "{}" > "$results/$lane.versions.json"
-  if [ "$lane" = wheel ] && ! install_wheel; then
-    failed=1
-    continue
-  fi
+# run_lane LANE: the lane's serial and MPI runs; non-zero if any failed.
+run_lane() {
+  local lane=$1 failed=0 mode start status cached
   for mode in serial mpi; do
     echo "=== $lane ($(cat "$results/$lane.versions.json")): $mode"
     if [ "$lane" = host ] && reuse_host_results "$mode"; then
@@ -191,6 +192,32 @@ for lane in $lanes; do
     echo "wheel lane: numba cached $cached functions in ~/.cache/numba (site-packages read-only)"
     [ "$cached" -gt 0 ] || failed=1
   fi
+  return "$failed"
+}
+
+failed=0
+dolfinx_lanes=()
+for lane in $lanes; do
+  describe "$lane" > "$results/$lane.versions.json" || echo "{}" > "$results/$lane.versions.json"
+  if [ "$lane" = host ]; then
+    run_lane host || failed=1
+  elif [ "$lane" = wheel ] && ! install_wheel; then
+    failed=1
+  else
+    dolfinx_lanes+=("$lane")
+  fi
+done
+# The other DOLFINx versions side by side: from a cold numba cache a lane is mostly compilation,
+# which two single processes share between the cores better than one lane on two workers.
+[ "${#dolfinx_lanes[@]}" -gt 1 ] && side_by_side=1
+pids=()
+for lane in "${dolfinx_lanes[@]}"; do
+  run_lane "$lane" > "$results/$lane.log" 2>&1 &
+  pids+=("$!")
+done
+for index in "${!pids[@]}"; do
+  wait "${pids[$index]}" || failed=1
+  cat "$results/${dolfinx_lanes[$index]}.log"
 done
 
 python3 "$here/report.py" "$results" "$repo/tools/compat/results.json" \
