@@ -113,6 +113,10 @@ class SolveResult:
     projected_iterations
         Newton iterations whose direction came from the projected tangent because the exact
         tangent's was not a descent direction or its linear solve failed.
+    blended_iterations
+        Of those, the iterations whose direction came from a blend K₊ + w (K − K₊) of the
+        projected and the exact tangent that is still positive definite (see
+        :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`).
     tolerance
         The absolute residual tolerance this solve used (see
         :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`).
@@ -137,6 +141,7 @@ class SolveResult:
     detail: str = ""
     linear_reason_name: str | None = None
     projected_iterations: int = 0
+    blended_iterations: int = 0
     tolerance: float = 0.0
     svd_share: dict[str, float | None] = dataclasses.field(default_factory=dict)
 

@@ -190,3 +190,36 @@ def test_krylov_solver_chosen_in_petsc_options_replaces_the_direct_default(pc_ty
         result = dynamics.step()
         assert result.converged and result.linear_iterations > result.newton_iterations
     assert dynamics.problem.solver.snes.getKSP().getPC().getType() == pc_type
+
+
+def _collapse_step(blend: bool, nu: float):
+    """One backward Euler step out of the point collapse (F = 0.05 I) of a unit cube."""
+    mesh = dolfinx.mesh.create_unit_cube(
+        MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron
+    )
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(space)
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    mu, lam = lame(1.0e3, nu)
+    # ρ = 1000: the wave speed is 1 m/s and dt·c/L = 1.5625e-3, where the exact tangent of the
+    # collapsed state is indefinite but only just: the mass outweighs most of its negative
+    # curvature.
+    dynamics = ImplicitDynamics(
+        u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=1.5625e-3
+    )
+    dynamics.problem.solver.blend_tangents = blend
+    dynamics.problem.solver.snes.setTolerances(max_it=200)
+    return dynamics.step()
+
+
+@pytest.mark.parametrize("nu", [0.49, 0.499])
+def test_blended_tangent_restores_fast_convergence_out_of_a_collapse(nu):
+    """The projected tangent alone converges linearly there; the blend keeps the convergence."""
+    projected = _collapse_step(False, nu)
+    blended = _collapse_step(True, nu)
+    assert projected.converged and blended.converged
+    assert projected.blended_iterations == 0 and blended.blended_iterations > 0
+    assert blended.newton_iterations <= 20
+    assert projected.newton_iterations >= 1.5 * blended.newton_iterations
+    # The same solution: the blend changes the path, not the minimiser it converges to.
+    assert blended.energy == pytest.approx(projected.energy, rel=1e-9)
