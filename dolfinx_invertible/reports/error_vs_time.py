@@ -854,6 +854,15 @@ def _figures(directory: pathlib.Path, rows, result, dpi: int) -> dict[str, str]:
         space_curves = sorted({row["curve"] for row in members if row["sweep"] == "resolution"})
         time_curves = sorted({row["curve"] for row in members if row["sweep"] == "dt"})
         wall = {"x": "wall_time_s", "xlabel": "wall time [s]"}
+        mesh_convergence = {
+            "x": "h",
+            "error": "error",
+            "xlabel": "h = 1/resolution",
+            "ylabel": "relative error",
+            "title": "mesh convergence",
+            "curves": space_curves,
+            "slopes": True,
+        }
         if study == "cook-membrane":
             published = result["studies"][study].get("reference_vs_published")
             panels = [
@@ -869,15 +878,7 @@ def _figures(directory: pathlib.Path, rows, result, dpi: int) -> dict[str, str]:
                         )
                     ],
                 },
-                {
-                    "x": "h",
-                    "error": "error",
-                    "xlabel": "h = 1/resolution",
-                    "ylabel": "relative error",
-                    "title": "mesh convergence",
-                    "curves": space_curves,
-                    "slopes": True,
-                },
+                mesh_convergence,
             ]
         else:
             panels = [
@@ -894,15 +895,7 @@ def _figures(directory: pathlib.Path, rows, result, dpi: int) -> dict[str, str]:
                     "title": "time error: against a fine-dt run on the same mesh",
                     "curves": time_curves,
                 },
-                {
-                    "x": "h",
-                    "error": "error",
-                    "xlabel": "h = 1/resolution",
-                    "ylabel": "relative error",
-                    "title": "mesh convergence",
-                    "curves": space_curves,
-                    "slopes": True,
-                },
+                mesh_convergence,
                 {
                     "x": "dt",
                     "error": "time_error",

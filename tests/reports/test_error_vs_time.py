@@ -21,6 +21,8 @@ import pytest
 
 from dolfinx_invertible.reports import error_vs_time
 
+pytestmark = pytest.mark.study
+
 REPOSITORY = Path(__file__).resolve().parents[2]
 
 

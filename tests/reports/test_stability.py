@@ -159,6 +159,7 @@ def test_inverted_energy_minimum_finds_the_energies_below_rest():
     assert lowest("nh-ife", 0.45) is None and lowest("nh-ufl", 0.45) is None
 
 
+@pytest.mark.study
 def test_quick_report_from_the_command_line(tmp_path):
     out = tmp_path / "stability"
     environment = dict(os.environ)

@@ -70,6 +70,9 @@ run_pytest() {
       ;;
     trixie | wheel)
       local python=/usr/bin/python3 lane_env=()
+      # The report studies run scenes that the scene tests cover already, for minutes: leave
+      # them to the host lane.
+      flags+=(-m "not study")
       if [ "$lane" = wheel ]; then
         python=$wheel_venv/bin/python
         # The venv as if activated: the wheel brings its own MPICH, so its mpiexec/mpirun (also
