@@ -36,8 +36,8 @@ Function in a temporal collection of its own; readers that take one collection (
 a single field, and ParaView shows the fields as separate blocks. It also wants a mesh grid in
 the same XML to refer to (without one it warns, and the XML it writes points nowhere). So for
 step 3, say, rank 0 first writes the working file ``run.steps/000003.xdmf-partial`` holding only
-the mesh grid of ``run.xdmf`` (its data in ``../run.h5``); every rank opens it in append mode,
-which makes DOLFINx create ``run.steps/000003.h5`` and write the Functions, and closes it. Rank
+the mesh grid of ``run.xdmf`` (its data in ``../run.h5``) and an empty ``run.steps/000003.h5``;
+every rank opens the pair in append mode, DOLFINx writes the Functions, and closes it. Rank
 0 then moves the new attributes, exactly as DOLFINx wrote them but with their HDF5 paths made
 relative to ``run.xdmf``, into one grid of the single collection, puts the result in place as
 ``run.xdmf`` with an atomic rename, and removes the working file: a reader (or a run killed at
@@ -341,10 +341,13 @@ class ResultWriter:
         self._step_template = _step_template(text)
 
     def _prepare_step(self) -> None:
-        step_xml, step_h5 = self._step_files(self.steps_written)
+        step_xml, _ = self._step_files(self.steps_written)
         self.steps_folder.mkdir(exist_ok=True)
-        # Left by a failed attempt at this step: DOLFINx would append to it.
-        step_h5.unlink(missing_ok=True)
+        # An empty HDF5 file (emptied, if a failed attempt at this step left one): in append
+        # mode each rank of DOLFINx opens the file if it exists and creates it if not, so it
+        # must exist before any rank looks, or the ranks may make different collective calls.
+        with _compat.xdmf_file(MPI.COMM_SELF, step_xml, "w"):
+            pass
         step_xml.write_text(self._step_template, encoding="utf-8")
 
 
