@@ -265,9 +265,7 @@ class ResultWriter:
         with _compat.xdmf_file(self.comm, step_xml, "a") as xdmf:
             for function in functions:
                 xdmf.write_function(function, float(t))
-        self._on_rank_0(
-            lambda: _merge_step(step_xml, self.path), RuntimeError, f"could not rewrite {self.path}"
-        )
+        self._merge_step_into_series()
 
         self._last_time = float(t)
         self.steps_written += 1
@@ -308,6 +306,12 @@ class ResultWriter:
         """Return the working XML of step ``index`` and its HDF5 file (named so by DOLFINx)."""
         xml = self.steps_folder / f"{index:06d}{WORKING_SUFFIX}"
         return xml, xml.with_suffix(".h5")
+
+    def _merge_step_into_series(self) -> None:
+        step_xml, _ = self._step_files(self.steps_written)
+        self._on_rank_0(
+            lambda: _merge_step(step_xml, self.path), RuntimeError, f"could not rewrite {self.path}"
+        )
 
     def _on_rank_0(self, action, error_type: type[Exception], failure: str) -> None:
         """Run ``action`` on rank 0; if it fails, raise ``error_type`` on every rank.
