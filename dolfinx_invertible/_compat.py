@@ -95,7 +95,7 @@ XDMF_XINCLUDE_NAMESPACE = (
 
 
 def xdmf_file(comm, path, mode: str = "w"):
-    """Return an XDMF file (``mode`` "w" or "r")."""
+    """Return an XDMF file (``mode`` "w", "a" or "r")."""
     return dolfinx.io.XDMFFile(comm, str(path), mode)
 
 

@@ -136,7 +136,7 @@ def inspect_xdmf(
     Parameters
     ----------
     path
-        The ``.xdmf`` file (its ``.h5`` next to it).
+        The ``.xdmf`` file (its HDF5 files next to it).
     executable
         The ``pvbatch`` to run (see :func:`find_pvbatch`).
     timeout

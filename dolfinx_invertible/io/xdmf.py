@@ -2,48 +2,65 @@
 
 File layout
 -----------
-``ResultWriter("run.xdmf", mesh)`` produces three files:
+``ResultWriter("run.xdmf", mesh)`` produces, next to each other:
 
-``run.xdmf`` and ``run.h5``
-    One XDMF 3 time series: the mesh grid, written once, followed by a single temporal
-    collection with one grid per :meth:`ResultWriter.write` call. Each of these grids includes
-    the mesh topology and geometry by ``xi:include``, carries its ``<Time Value=...>`` and holds
-    every field of that step: the displacement at the mesh nodes and one cell-centred attribute
-    per diagnostic. ParaView's XDMF3 reader and ``meshio.xdmf.TimeSeriesReader`` both read it as
-    one dataset with all fields per time step.
+``run.xdmf``
+    One XDMF 3 time series: the mesh grid, followed by a single temporal collection with one
+    grid per :meth:`ResultWriter.write` call. Each of these grids includes the mesh topology and
+    geometry by ``xi:include``, carries its ``<Time Value=...>`` and holds every field of that
+    step: the displacement at the mesh nodes and one cell-centred attribute per diagnostic.
+    ParaView's XDMF3 reader and ``meshio.xdmf.TimeSeriesReader`` both read it as one dataset
+    with all fields per time step.
+``run.h5``
+    The mesh (topology and geometry), written once when the writer starts.
+``run.steps/000000.h5``, ``run.steps/000001.h5``, ...
+    The fields of each step, one HDF5 file per step, numbered like the ``step`` of the log.
+    ``run.xdmf`` refers to them by paths relative to its folder, so the three belong together:
+    copying a run means copying its folder.
 ``run.jsonl``
     One JSON object per step (``step``, ``time`` and the caller's record), written by rank 0
     and flushed line by line.
 
-Why the XML is rewritten
-------------------------
+Why every step has its own HDF5 file
+------------------------------------
+HDF5 updates a file's metadata (free-space lists, the superblock) in place while it closes
+the file; a run killed at that moment can leave the file unreadable as a whole. So no file that
+``run.xdmf`` refers to is ever opened for writing again: ``run.h5`` is written once, and each
+step goes to a new file that ``run.xdmf`` only refers to once it is closed. A kill can damage
+only the file of the step in flight, which no reader is pointed at.
+
+How a step is written
+---------------------
 DOLFINx's ``XDMFFile`` writes the heavy data (in parallel, through HDF5), but it puts each
 Function in a temporal collection of its own; readers that take one collection (meshio) then see
-a single field, and ParaView shows the fields as separate blocks. After each step rank 0 moves
-the new attributes, exactly as DOLFINx wrote them, into the one collection.
+a single field, and ParaView shows the fields as separate blocks. It also wants a mesh grid in
+the same XML to refer to (without one it warns, and the XML it writes points nowhere). So for
+step 3, say, rank 0 first writes the working file ``run.steps/000003.xdmf-partial`` holding only
+the mesh grid of ``run.xdmf`` (its data in ``../run.h5``) and an empty ``run.steps/000003.h5``;
+every rank opens the pair in append mode, DOLFINx writes the Functions, and closes it. Rank
+0 then moves the new attributes, exactly as DOLFINx wrote them but with their HDF5 paths made
+relative to ``run.xdmf``, into one grid of the single collection, puts the result in place as
+``run.xdmf`` with an atomic rename, and removes the working file: a reader (or a run killed at
+any instant) sees every completed step and nothing half-written.
 
-Why DOLFINx writes to a working copy
-------------------------------------
-DOLFINx rewrites the XML in place when it appends; a run killed at that moment would leave
-``run.xdmf`` holding the unmerged collections of the step in flight. So DOLFINx works on
-``run.xdmf-partial`` (same HDF5 file, whose name DOLFINx derives by replacing the suffix), and
-rank 0 puts each merged XML in place as ``run.xdmf`` with an atomic rename: a reader (or a run
-killed at any instant) sees every completed step and nothing half-written. :meth:`close`
-removes the working copy.
-
-Why the file is closed after every step
----------------------------------------
+Why the files are closed after every step
+-----------------------------------------
 While a DOLFINx ``XDMFFile`` is open it holds the HDF5 file with its data possibly unflushed
-and locked (HDF5 file locking refuses every other reader, ParaView included). So each
-:meth:`ResultWriter.write` opens the file in append mode, writes, and closes it again: every
-step written is on disk and readable, also while the run goes on and after it fails.
+and locked (HDF5 file locking refuses every other reader, ParaView included). So every step's
+file is closed before :meth:`ResultWriter.write` returns: every step written is on disk and
+readable, also while the run goes on and after it fails.
+
+When a writer starts it removes the step folder of a previous run of the same name, so no file
+in it is left from another run.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import posixpath
 import re
+import shutil
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Mapping
 from pathlib import Path
@@ -57,14 +74,17 @@ import numpy as np
 from dolfinx_invertible import _compat
 from dolfinx_invertible.io.step_log import StepLog
 
-__all__ = ["DISPLACEMENT_NAME", "SERIES_NAME", "WORKING_SUFFIX", "ResultWriter"]
+__all__ = ["DISPLACEMENT_NAME", "SERIES_NAME", "STEPS_SUFFIX", "WORKING_SUFFIX", "ResultWriter"]
 
 #: Name of the displacement attribute in the XDMF file.
 DISPLACEMENT_NAME = "displacement"
 #: Name of the temporal collection grid that holds the steps.
 SERIES_NAME = "time_series"
-#: Suffix of the XML file DOLFINx appends to while a run writes (removed by ``close``).
+#: Suffix of the XML files DOLFINx writes to (the mesh's and the step in flight's); each is
+#: removed once its content is in the series, and any left over by ``close``.
 WORKING_SUFFIX = ".xdmf-partial"
+#: Suffix of the folder next to the XDMF file that holds the HDF5 file of every step.
+STEPS_SUFFIX = ".steps"
 
 _XINCLUDE_NAMESPACE = _compat.XDMF_XINCLUDE_NAMESPACE
 _XINCLUDE = f"{{{_XINCLUDE_NAMESPACE}}}include"
@@ -80,14 +100,16 @@ class ResultWriter:
     """Writes a displacement field and per-cell diagnostics as one XDMF time series.
 
     A context manager; all methods are collective on ``comm``. Every :meth:`write` leaves the
-    XDMF/HDF5 pair complete and closed, so the steps written so far stay readable if the run
-    fails later (see the module docstring).
+    XDMF file and its HDF5 files complete and closed, so the steps written so far stay readable
+    if the run fails later, even if it is killed (see the module docstring).
 
     Parameters
     ----------
     path
-        The ``.xdmf`` file; the HDF5 data goes next to it with the suffix ``.h5``. Both are
-        overwritten; missing parent directories are created.
+        The ``.xdmf`` file; the mesh goes next to it with the suffix ``.h5``, and the fields of
+        each step to its own HDF5 file in the folder with the suffix ``.steps`` (``run.xdmf``:
+        ``run.h5`` and ``run.steps/000000.h5``, ...). All are overwritten (a previous step
+        folder is removed); missing parent directories are created.
     mesh
         The mesh, written once.
     comm
@@ -116,6 +138,7 @@ class ResultWriter:
             raise ValueError(f"path must end in .xdmf, got {str(path)!r}")
         self.log_path = self.path.with_suffix(".jsonl") if log_path is None else Path(log_path)
         self._working_path = self.path.with_suffix(WORKING_SUFFIX)
+        self.steps_folder = self.path.with_suffix(STEPS_SUFFIX)
         self.mesh = mesh
         self.comm = mesh.comm if comm is None else comm
         if MPI.Comm.Compare(self.comm, mesh.comm) not in (MPI.IDENT, MPI.CONGRUENT):
@@ -138,10 +161,7 @@ class ResultWriter:
         self._owned_cell_dofs = _compat.cell_dofs(self._cell_space)[: self._num_owned_cells, 0]
         self._cell_fields: dict[str, dolfinx.fem.Function] = {}
 
-        if self.comm.rank == 0:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.log_path.parent.mkdir(parents=True, exist_ok=True)
-        self.comm.barrier()
+        self._on_rank_0(self._prepare_folders, OSError, f"cannot prepare the output of {self.path}")
         try:
             with _compat.xdmf_file(self.comm, self._working_path, "w") as xdmf:
                 xdmf.write_mesh(mesh)
@@ -150,11 +170,8 @@ class ResultWriter:
                 f"cannot create {self.path.with_suffix('.h5')}: {error} (is another process "
                 "writing it or holding it open? HDF5 locks the files it writes)"
             ) from None
-        if self.comm.rank == 0:
-            # DOLFINx's own file as it is: a rewrite would drop its XInclude namespace
-            # declaration, which its later appends rely on.
-            _replace_atomically(self.path, self._working_path.read_text(encoding="utf-8"))
-        self.comm.barrier()
+        self._step_template = None
+        self._on_rank_0(self._publish_mesh, RuntimeError, f"could not write {self.path}")
         self._log = StepLog(self.log_path, self.comm)
 
     def __enter__(self) -> ResultWriter:
@@ -172,6 +189,9 @@ class ResultWriter:
             self._log.close()
         if self.comm.rank == 0:
             self._working_path.unlink(missing_ok=True)
+            # A step whose write failed: its files, if any, are not part of the series.
+            for file in self._step_files(self.steps_written):
+                file.unlink(missing_ok=True)
 
     def write(
         self,
@@ -239,7 +259,10 @@ class ResultWriter:
             function.x.array[self._owned_cell_dofs] = cell_values
             function.x.scatter_forward()
             functions.append(function)
-        with _compat.xdmf_file(self.comm, self._working_path, "a") as xdmf:
+        step_xml, _ = self._step_files(self.steps_written)
+        # Also orders the working file before every rank opens it.
+        self._on_rank_0(self._prepare_step, RuntimeError, f"could not create {step_xml}")
+        with _compat.xdmf_file(self.comm, step_xml, "a") as xdmf:
             for function in functions:
                 xdmf.write_function(function, float(t))
         self._merge_step_into_series()
@@ -279,51 +302,124 @@ class ResultWriter:
             self._cell_fields[name] = dolfinx.fem.Function(self._cell_space, name=name)
         return self._cell_fields[name]
 
+    def _step_files(self, index: int) -> tuple[Path, Path]:
+        """Return the working XML of step ``index`` and its HDF5 file (named so by DOLFINx)."""
+        xml = self.steps_folder / f"{index:06d}{WORKING_SUFFIX}"
+        return xml, xml.with_suffix(".h5")
+
     def _merge_step_into_series(self) -> None:
-        error = None
+        step_xml, _ = self._step_files(self.steps_written)
+        self._on_rank_0(
+            lambda: _merge_step(step_xml, self.path), RuntimeError, f"could not rewrite {self.path}"
+        )
+
+    def _on_rank_0(self, action, error_type: type[Exception], failure: str) -> None:
+        """Run ``action`` on rank 0; if it fails, raise ``error_type`` on every rank.
+
+        Also a barrier: no rank returns before rank 0 is done.
+        """
+        error = cause = None
         if self.comm.rank == 0:
             try:
-                _merge_new_collections(self._working_path, self.path)
+                action()
             except Exception as exception:  # re-raised on every rank below
-                error = f"could not rewrite {self.path}: {exception!r}"
-        # Also orders the rewrite before the next append, where every rank reads the XML.
+                error, cause = f"{failure}: {exception!r}", exception
         error = self.comm.bcast(error, root=0)
         if error is not None:
-            raise RuntimeError(error)
+            raise error_type(error) from cause
 
-
-def _merge_new_collections(working: Path, path: Path) -> None:
-    """Fold the per-Function collections DOLFINx just wrote into one step of the series.
-
-    DOLFINx appends one temporal collection per Function name that is not found in ``working``;
-    since earlier steps were already moved out of them, each holds exactly the one new grid.
-    The result goes back to ``working`` (for DOLFINx's next append) and, atomically, to
-    ``path``.
-    """
-    tree = ElementTree.parse(working)
-    domain = tree.getroot().find("Domain")
-    series = None
-    new_grids = []
-    for grid in domain.findall("Grid"):
-        if grid.get("GridType") != "Collection":
-            continue
-        if grid.get("Name") == SERIES_NAME:
-            series = grid
+    def _prepare_folders(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        # A previous run's steps, which would otherwise be taken for this run's.
+        if self.steps_folder.is_dir() and not self.steps_folder.is_symlink():
+            shutil.rmtree(self.steps_folder)
         else:
-            new_grids.extend(grid.findall("Grid"))
-            domain.remove(grid)
+            self.steps_folder.unlink(missing_ok=True)
+
+    def _publish_mesh(self) -> None:
+        # DOLFINx's own file (the mesh grid) as it is, until the first step is merged into it.
+        text = self._working_path.read_text(encoding="utf-8")
+        _replace_atomically(self.path, text)
+        self._working_path.unlink()
+        self._step_template = _step_template(text)
+
+    def _prepare_step(self) -> None:
+        step_xml, _ = self._step_files(self.steps_written)
+        self.steps_folder.mkdir(exist_ok=True)
+        # An empty HDF5 file (emptied, if a failed attempt at this step left one): in append
+        # mode each rank of DOLFINx opens the file if it exists and creates it if not, so it
+        # must exist before any rank looks, or the ranks may make different collective calls.
+        with _compat.xdmf_file(MPI.COMM_SELF, step_xml, "w"):
+            pass
+        step_xml.write_text(self._step_template, encoding="utf-8")
+
+
+def _step_template(mesh_text: str) -> str:
+    """Return the XML a step starts from: the mesh grid of ``mesh_text``, seen from a step file.
+
+    ``write_function`` refers to the first uniform grid of its file for the topology and the
+    geometry (and warns if there is none); this one points at the series' mesh data.
+    """
+    root = ElementTree.fromstring(mesh_text)
+    grid = root.find("Domain/Grid")
+    for item in grid.iter("DataItem"):
+        item.text = _rebased(item.text, "..")
+    ElementTree.indent(grid, space="  ", level=2)
+    return (
+        f'{_XML_HEADER}<Xdmf Version="{root.get("Version", "3.0")}" '
+        f'xmlns:xi="{_XINCLUDE_NAMESPACE}">\n  <Domain>\n    '
+        f"{ElementTree.tostring(grid, encoding='unicode').rstrip()}\n  </Domain>\n</Xdmf>\n"
+    )
+
+
+def _rebased(reference: str, folder: str) -> str:
+    """Return a DataItem's HDF5 reference ``file:/dataset`` with ``file`` seen from ``folder``."""
+    file, dataset = reference.strip().rsplit(":", 1)
+    return f"{posixpath.normpath(posixpath.join(folder, file))}:{dataset}"
+
+
+def _merge_step(step_xml: Path, path: Path) -> None:
+    """Fold the per-Function collections DOLFINx wrote in ``step_xml`` into one step of ``path``.
+
+    DOLFINx wrote one temporal collection per Function, each with the one grid of this step.
+    Their attributes go into one new grid of the series, with their HDF5 references (relative
+    to ``step_xml``) made relative to ``path``; the series replaces ``path`` atomically, and
+    ``step_xml`` is removed.
+    """
+    new_grids = [
+        grid
+        for collection in ElementTree.parse(step_xml).getroot().find("Domain").findall("Grid")
+        if collection.get("GridType") == "Collection"
+        for grid in collection.findall("Grid")
+    ]
     if not new_grids:
-        return
+        raise RuntimeError(f"DOLFINx wrote no Function to {step_xml}")
+    tree = ElementTree.parse(path)
+    domain = tree.getroot().find("Domain")
+    series = next(
+        (
+            grid
+            for grid in domain.findall("Grid")
+            if grid.get("GridType") == "Collection" and grid.get("Name") == SERIES_NAME
+        ),
+        None,
+    )
     if series is None:
         series = ElementTree.SubElement(
             domain, "Grid", Name=SERIES_NAME, GridType="Collection", CollectionType="Temporal"
         )
     step = ElementTree.SubElement(series, "Grid", Name=SERIES_NAME, GridType="Uniform")
-    # All fields of one step share the mesh and time: take the first grid's references.
+    # All fields of one step share the mesh and time: take the first grid's references. The
+    # XInclude points at the first uniform grid of its document, which in ``path`` is the mesh.
     step.append(new_grids[0].find(_XINCLUDE))
     step.append(new_grids[0].find("Time"))
+    folder = os.path.relpath(step_xml.parent, path.parent).replace(os.sep, "/")
     for grid in new_grids:
         for attribute in grid.findall("Attribute"):
+            for item in attribute.iter("DataItem"):
+                if item.get("Format") == "HDF":
+                    item.text = _rebased(item.text, folder)
             step.append(attribute)
 
     # XDMF reads a data item without a precision as single precision (ParaView does); ours
@@ -334,11 +430,11 @@ def _merge_new_collections(working: Path, path: Path) -> None:
             item.set("Precision", "8")
     ElementTree.indent(tree, space="  ")
     # The prefix map is global: another library (meshio) may have bound "xi" to the other
-    # XInclude URI, which would make DOLFINx's next "xi:include" an unbound prefix.
+    # XInclude URI.
     ElementTree.register_namespace("xi", _XINCLUDE_NAMESPACE)
     text = _XML_HEADER + ElementTree.tostring(tree.getroot(), encoding="unicode") + "\n"
-    working.write_text(text, encoding="utf-8")
     _replace_atomically(path, text)
+    step_xml.unlink()
 
 
 def _replace_atomically(path: Path, text: str) -> None:

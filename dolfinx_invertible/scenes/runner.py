@@ -2,9 +2,9 @@
 
 The output of a run in its directory (``results/SCENE/`` by default):
 
-- ``SCENE.xdmf`` + ``SCENE.h5``: the displacement and the per-cell diagnostics of every completed
-  step, readable while the run goes on and after it stops (also after SIGKILL, up to the last
-  completed step);
+- ``SCENE.xdmf`` + ``SCENE.h5`` + ``SCENE.steps/``: the displacement and the per-cell diagnostics
+  of every completed step (the XML, the mesh, one HDF5 file per step), readable while the run
+  goes on and after it stops (also after SIGKILL, up to the last completed step);
 - ``SCENE.jsonl``: one line per completed step (time, energy, iterations, inverted cells, ...);
 - ``summary.json``: every parameter used and how the run went, written at the end, also after a
   failure or an interrupt (``completed`` false and the reason given); the previous run's summary

@@ -4,7 +4,9 @@ Runs serially and under mpirun: files are read back on rank 0 only, after a barr
 checks compare values through the coordinates rather than through any node or cell order.
 """
 
+import hashlib
 import json
+import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ from dolfinx_helpers import (
 
 from dolfinx_invertible import _compat
 from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
+from dolfinx_invertible.io import xdmf as xdmf_module
 from dolfinx_invertible.io.xdmf import DISPLACEMENT_NAME, ResultWriter
 
 pytestmark = pytest.mark.mpi
@@ -136,6 +139,127 @@ def test_readable_while_open(directory):
         if COMM.rank == 0:
             assert len(read_series(path)[2]) == 2
         COMM.barrier()
+
+
+def fingerprint(path):
+    """(mtime, size, hash) of a file: changes whenever the file is written to."""
+    stat = path.stat()
+    return stat.st_mtime_ns, stat.st_size, hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def fingerprints(directory):
+    return {path: fingerprint(path) for path in directory.rglob("*") if path.is_file()}
+
+
+def write_steps(writer, mesh, A, times):
+    for t in times:
+        writer.write(
+            t, affine_displacement(mesh, A, scale=t), {"midpoint_x": owned_midpoints(mesh)}
+        )
+
+
+def test_each_step_has_its_own_hdf5_file(directory):
+    import h5py
+
+    mesh = unit_mesh(2)
+    A = deformation(2, 0.8)
+    path = directory / "steps.xdmf"
+    times = [0.0, 0.5, 1.0]
+    with ResultWriter(path, mesh) as writer:
+        mesh_file = fingerprint(path.with_suffix(".h5")) if COMM.rank == 0 else None
+        write_steps(writer, mesh, A, times)
+    COMM.barrier()
+    if COMM.rank != 0:
+        return
+
+    # The mesh file is written once, when the writer starts, and holds no step.
+    assert fingerprint(path.with_suffix(".h5")) == mesh_file
+    with h5py.File(path.with_suffix(".h5"), "r") as mesh_data:
+        assert set(mesh_data) == {"Mesh"}
+    folder = directory / "steps.steps"
+    names = [f"{step:06d}.h5" for step in range(len(times))]
+    assert sorted(file.name for file in folder.iterdir()) == names  # no working files left
+    series = ElementTree.parse(path).getroot().findall("Domain/Grid[@Name='time_series']/Grid")
+    assert len(series) == len(times)
+    for name, grid in zip(names, series):
+        with h5py.File(folder / name, "r") as step_data:
+            assert set(step_data) == {"Function"}
+            assert set(step_data["Function"]) == {DISPLACEMENT_NAME, "midpoint_x"}
+            for field in step_data["Function"].values():
+                assert len(field) == 1  # this step's time only
+        references = {item.text.split(":")[0] for item in grid.iter("DataItem")}
+        assert references == {f"steps.steps/{name}"}
+
+    points, _, steps = read_series(path)
+    assert [t for t, _, _ in steps] == times
+    for t, point_data, _ in steps:
+        expected = t * points[:, :2] @ (A - np.eye(2)).T
+        np.testing.assert_allclose(point_data[DISPLACEMENT_NAME][:, :2], expected, atol=1e-12)
+
+
+def test_a_step_cut_off_before_its_merge_leaves_the_earlier_steps_readable(directory, monkeypatch):
+    """A run killed while HDF5 writes or closes a step: only that step's data is damaged."""
+    mesh = unit_mesh(2)
+    A = deformation(2, 0.8)
+    path = directory / "cut.xdmf"
+    writer = ResultWriter(path, mesh)
+    write_steps(writer, mesh, A, [1.0, 2.0])
+    COMM.barrier()
+    before = fingerprints(directory) if COMM.rank == 0 else None
+
+    # Rank 0 fails to put the new series in place: the step's data is written, not referenced.
+    def killed(path, text):
+        raise RuntimeError("killed")
+
+    monkeypatch.setattr(xdmf_module, "_replace_atomically", killed)
+    with pytest.raises(RuntimeError, match="killed"):
+        write_steps(writer, mesh, A, [3.0])
+    COMM.barrier()
+    if COMM.rank == 0:
+        # Damage every HDF5 file the cut-off step wrote to, as a kill while closing can.
+        written = [
+            file
+            for file, state in fingerprints(directory).items()
+            if file.suffix == ".h5" and before.get(file) != state
+        ]
+        assert written
+        for file in written:
+            size = file.stat().st_size
+            with open(file, "r+b") as damaged:
+                damaged.truncate(size // 2)
+        points, _, steps = read_series(path)
+        assert [t for t, _, _ in steps] == [1.0, 2.0]
+        for t, point_data, _ in steps:
+            expected = t * points[:, :2] @ (A - np.eye(2)).T
+            np.testing.assert_allclose(point_data[DISPLACEMENT_NAME][:, :2], expected, atol=1e-12)
+    COMM.barrier()
+
+    writer.close()
+    COMM.barrier()
+    if COMM.rank == 0:
+        # The files of the step that was never merged are not left looking like part of the run.
+        assert sorted(file.name for file in (directory / "cut.steps").iterdir()) == [
+            "000000.h5",
+            "000001.h5",
+        ]
+
+
+def test_a_new_run_removes_the_steps_of_the_previous_one(directory):
+    mesh = unit_mesh(2)
+    A = deformation(2, 0.8)
+    path = directory / "again.xdmf"
+    with ResultWriter(path, mesh) as writer:
+        write_steps(writer, mesh, A, [0.0, 1.0, 2.0])
+    with ResultWriter(path, mesh) as writer:
+        COMM.barrier()
+        if COMM.rank == 0:
+            assert not (directory / "again.steps").exists()
+        COMM.barrier()
+        write_steps(writer, mesh, A, [5.0])
+    COMM.barrier()
+    if COMM.rank == 0:
+        assert [file.name for file in (directory / "again.steps").iterdir()] == ["000000.h5"]
+        assert [t for t, _, _ in read_series(path)[2]] == [5.0]
 
 
 def test_wrong_length_diagnostic_names_key(directory):
