@@ -194,9 +194,7 @@ def test_krylov_solver_chosen_in_petsc_options_replaces_the_direct_default(pc_ty
 
 def _collapse_step(blend: bool, nu: float):
     """One backward Euler step out of the point collapse (F = 0.05 I) of a unit cube."""
-    mesh = dolfinx.mesh.create_unit_cube(
-        MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron
-    )
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
     space = _compat.vector_function_space(mesh, "Lagrange", 1)
     u = dolfinx.fem.Function(space)
     u.interpolate(lambda x: -0.95 * (x - 0.5))
