@@ -253,7 +253,14 @@ class ImplicitDynamics:
 
         try:
             size, result = take_step(
-                self.controller, self.time, remaining, self._attempt, self._restore, failure, check
+                self.controller,
+                self.time,
+                remaining,
+                self._attempt,
+                self._restore,
+                failure,
+                check,
+                escalate=self.problem.escalate,
             )
         except Exception as error:
             if hasattr(error, "step_index"):

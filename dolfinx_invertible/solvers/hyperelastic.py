@@ -169,6 +169,10 @@ class HyperelasticProblem:
             displacement_tolerance=displacement_tolerance,
         )
 
+    def escalate(self) -> bool:
+        """Switch to the slower, more robust Newton (blended tangents); see the minimiser's."""
+        return self.solver.escalate()
+
     def solve(self) -> SolveResult:
         """Solve from the current ``u``; return a :class:`~dolfinx_invertible.SolveResult`.
 

@@ -86,14 +86,20 @@ class EnergyMinimizer:
     2. If that linear solve failed or its direction is not a descent direction (the exact
        tangent is indefinite there) and ``tangent_switch`` is given, the direction is computed
        again from the projected tangent at the same iterate (``result.projected_iterations``
-       counts these). Where the factorisation reports its inertia (the direct solver, MUMPS
-       LDLᵀ) and ``blend_tangents`` is on, the direction comes instead from the blend
-       K₊ + w (K − K₊) of the projected tangent K₊ and the exact one K with the largest weight
-       w of a ladder (511/512 … 1/64) whose factorisation has no negative pivot: the projection
-       drops all of the cells' negative curvature, even where the mass or the rest of the body
-       outweighs most of it, and Newton on K₊ then converges only linearly (e.g. out of a
-       collapsed state at λ/μ ≥ 49: 50+ iterations, against 16 with the blend). A failure that
-       remains ends the solve at the stage "linear solve" or "line search".
+       counts these). Once a solve has taken ``blend_after`` projected iterations (after
+       :meth:`escalate`: from the first; by default never) and where
+       the factorisation reports its inertia (the direct solver, MUMPS LDLᵀ), the direction
+       comes instead from the blend K₊ + w (K − K₊) of the projected tangent K₊ and the exact
+       one K with the largest weight w of a ladder (511/512 … 1/64) whose factorisation has no
+       negative pivot (``result.blended_iterations`` counts these): the projection drops all of
+       the cells' negative curvature, even where the mass or the rest of the body outweighs
+       most of it, and Newton on K₊ then converges only linearly (out of a collapsed state at
+       λ/μ ≥ 49: 50 to 90 iterations, against 16 with the blend). It is a last resort, not
+       the default: a step that the blend brings home in many iterations has often travelled
+       to another minimum of the step's energy (an inverted one, in a collapse) where cutting
+       the step would have kept the motion resolved. The steppers escalate to it when the cuts
+       of a step are used up. A failure that remains ends the solve at the stage "linear
+       solve" or "line search".
     3. ``step_limits`` cap the step (e.g. the inversion-free cap).
     4. Backtracking on the energy Π: a step is accepted when Π decreases by the Armijo amount
        (``sufficient_decrease`` times the exact directional derivative; the full Newton step
@@ -163,9 +169,10 @@ class EnergyMinimizer:
     watchdog_steps
         Tentative full steps after the first before the energy must have decreased (step 5);
         0 turns the watchdog off.
-    blend_tangents
-        Blend the exact and the projected tangent where the exact one is indefinite (step 2);
-        ``False`` takes the projected tangent as it is.
+    blend_after
+        Projected iterations of a solve after which the exact and the projected tangent are
+        blended where the exact one is indefinite (step 2); ``None`` (default) never blends
+        until :meth:`escalate` is called.
 
     Attributes
     ----------
@@ -191,7 +198,7 @@ class EnergyMinimizer:
         sufficient_decrease: float = 1.0e-4,
         max_backtracks: int = 30,
         watchdog_steps: int = 2,
-        blend_tangents: bool = True,
+        blend_after: int | None = None,
     ) -> None:
         if not (math.isfinite(displacement_tolerance) and displacement_tolerance > 0.0):
             raise ValueError(
@@ -240,7 +247,9 @@ class EnergyMinimizer:
         self._matrix.setNearNullSpace(rigid_body_near_nullspace(space))
         self._exact: PETSc.Mat | None = None  # allocated at the first blended tangent
         self._projected: PETSc.Mat | None = None
-        self.blend_tangents = bool(blend_tangents)
+        if blend_after is not None and (int(blend_after) != blend_after or blend_after < 0):
+            raise ValueError(f"blend_after must be an integer >= 0 or None, got {blend_after!r}")
+        self.blend_after = None if blend_after is None else int(blend_after)
         self._cell_size = mean_cell_size(space.mesh)
         self._stiffness: tuple[float, int] | None = None  # typical |K_ii|, free dofs
         self._state = _SolveState()
@@ -419,7 +428,11 @@ class EnergyMinimizer:
     def _projected_direction(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
         # Keep the exact tangent the SNES just factorised: where the factorisation reports its
         # inertia, a blend of the two tangents may be positive definite and much closer to it.
-        blend = self.blend_tangents and self._has_inertia(ksp)
+        blend = (
+            self.blend_after is not None
+            and self._state.projected_iterations >= self.blend_after
+            and self._has_inertia(ksp)
+        )
         if blend:
             self._exact = self._matrix.copy(self._exact, structure=_SAME_PATTERN)
         self.tangent_switch(True)
@@ -588,6 +601,20 @@ class EnergyMinimizer:
         # SNES steps to x − y: make that the accepted point origin − direction.
         y.waxpy(-1.0, origin, x)
         y.axpy(1.0, direction)
+        return True
+
+    def escalate(self) -> bool:
+        """Blend the tangents from the first projected iteration on (step 2), for good.
+
+        The steppers call it when a step has failed at every cut. Returns ``False`` when there
+        is nothing to escalate to: no tangent switch, no inertia from the linear solver (an
+        iterative one), or blending from the first iteration already.
+        """
+        if self.tangent_switch is None or self.blend_after == 0:
+            return False
+        if not self._has_inertia(self.snes.getKSP()):
+            return False
+        self.blend_after = 0
         return True
 
     # -- solving ------------------------------------------------------------------------------

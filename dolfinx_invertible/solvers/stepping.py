@@ -33,7 +33,9 @@ class Solvable(Protocol):
     """What a stepping loop drives: a solve from the current state of ``u``.
 
     :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer` and
-    :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem` are both.
+    :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem` are both; an
+    ``escalate()`` method, if the solver has one, is what the stepping calls when a step's cuts
+    run out (see :func:`take_step`).
     """
 
     u: dolfinx.fem.Function
@@ -71,6 +73,9 @@ class StepController:
         Sizes of the accepted steps, in order.
     cuts
         Total number of cuts (failed attempts).
+    escalations
+        Times the cuts of a step ran out and the solver switched to a more robust mode
+        (:func:`take_step`'s ``escalate``), which then got a fresh budget of cuts.
     """
 
     def __init__(
@@ -106,6 +111,7 @@ class StepController:
         self.step = self.nominal
         self.accepted: list[float] = []
         self.cuts = 0
+        self.escalations = 0
         self._consecutive_cuts = 0
 
     def size(self, remaining: float = math.inf) -> float:
@@ -128,6 +134,12 @@ class StepController:
         self.step = size * self.cut
         return self._consecutive_cuts <= self.max_cuts and self.step >= self.minimum
 
+    def restart(self, size: float) -> None:
+        """Try ``size`` again with a fresh budget of cuts (after an escalation)."""
+        self.escalations += 1
+        self._consecutive_cuts = 0
+        self.step = size
+
     @property
     def consecutive_cuts(self) -> int:
         """Cuts since the last accepted step."""
@@ -138,6 +150,7 @@ class StepController:
         return {
             "steps": len(self.accepted),
             "cuts": self.cuts,
+            "escalations": self.escalations,
             "step_min": min(self.accepted) if self.accepted else None,
             "step_max": max(self.accepted) if self.accepted else None,
         }
@@ -151,6 +164,7 @@ def take_step(
     restore: Callable[[float], None],
     failure: Callable[[float, float, SolveResult], str],
     check: Callable[[SolveResult], str | None] | None = None,
+    escalate: Callable[[], bool] | None = None,
 ) -> tuple[float, SolveResult]:
     """Take one step from ``start``, cutting and retrying until it succeeds or the cuts run out.
 
@@ -171,6 +185,10 @@ def take_step(
         :class:`~dolfinx_invertible.solvers.results.SolverError` when the cuts are used up.
     check
         Optional test of a converged attempt: a reason to reject it (cut and retry) or ``None``.
+    escalate
+        Called once the cuts are used up: ``True`` if it switched the solver to a more robust
+        mode (e.g. :meth:`~dolfinx_invertible.solvers.newton.EnergyMinimizer.escalate`), and
+        the last size is then tried again with a fresh budget of cuts. The mode stays.
 
     Returns
     -------
@@ -188,6 +206,9 @@ def take_step(
         if rejection is not None:
             result = _rejected(result, rejection)
         if not controller.failed(size):
+            if escalate is not None and escalate():
+                controller.restart(size)
+                continue
             message = failure(start, start + size, result)
             if controller.step < controller.minimum:
                 message += f" (the next cut would take the step below {controller.minimum:.3g})"
@@ -313,7 +334,13 @@ def solve_load_steps(
         while time_reached < target:
             try:
                 size, result = take_step(
-                    controller, time_reached, target - time_reached, attempt, restore, failure
+                    controller,
+                    time_reached,
+                    target - time_reached,
+                    attempt,
+                    restore,
+                    failure,
+                    escalate=getattr(solver, "escalate", None),
                 )
             except SolverError as error:
                 error.step_index = step_index

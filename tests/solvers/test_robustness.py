@@ -205,7 +205,7 @@ def _collapse_step(blend: bool, nu: float):
     dynamics = ImplicitDynamics(
         u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=1.5625e-3
     )
-    dynamics.problem.solver.blend_tangents = blend
+    dynamics.problem.solver.blend_after = 0 if blend else None
     dynamics.problem.solver.snes.setTolerances(max_it=200)
     return dynamics.step()
 
@@ -221,3 +221,32 @@ def test_blended_tangent_restores_fast_convergence_out_of_a_collapse(nu):
     assert projected.newton_iterations >= 1.5 * blended.newton_iterations
     # The same solution: the blend changes the path, not the minimiser it converges to.
     assert blended.energy == pytest.approx(projected.energy, rel=1e-9)
+
+
+def _collapsed_cube_dynamics(dt: float) -> ImplicitDynamics:
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    mu, lam = lame(1.0e3, 0.49)
+    return ImplicitDynamics(u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=dt)
+
+
+def test_a_step_whose_cuts_run_out_escalates_to_blended_tangents():
+    """dt·c/L = 0.1 out of the collapse: projected Newton fails at every cut, the blend does not.
+
+    Without the escalation the step fails seven times (down to dt/64, 50 iterations each);
+    with it, dt/64 is tried again with blended tangents and converges.
+    """
+    refused = _collapsed_cube_dynamics(0.1)
+    refused.problem.escalate = lambda: False
+    with pytest.raises(SolverError, match="failed 7 times"):
+        refused.step()
+    assert refused.controller.escalations == 0
+
+    escalated = _collapsed_cube_dynamics(0.1)
+    result = escalated.step()
+    assert result.converged and result.blended_iterations > 0
+    assert result.newton_iterations <= 25
+    assert escalated.controller.escalations == 1
+    assert escalated.controller.statistics()["step_min"] == pytest.approx(0.1 / 64)
+    assert escalated.problem.solver.blend_after == 0  # the mode stays for the later steps
