@@ -113,6 +113,7 @@ class StepController:
         self.cuts = 0
         self.escalations = 0
         self._consecutive_cuts = 0
+        self._budget = self.max_cuts
 
     def size(self, remaining: float = math.inf) -> float:
         """Return the size of the next attempt: the current step, clipped to ``remaining``."""
@@ -124,6 +125,7 @@ class StepController:
         """Record an accepted step of ``size``; an easy one lets the next step grow."""
         self.accepted.append(size)
         self._consecutive_cuts = 0
+        self._budget = self.max_cuts
         if result.newton_iterations <= self.easy_iterations:
             self.step = min(self.nominal, max(self.step, size) * self.growth)
 
@@ -132,17 +134,17 @@ class StepController:
         self.cuts += 1
         self._consecutive_cuts += 1
         self.step = size * self.cut
-        return self._consecutive_cuts <= self.max_cuts and self.step >= self.minimum
+        return self._consecutive_cuts <= self._budget and self.step >= self.minimum
 
     def restart(self, size: float) -> None:
-        """Try ``size`` again with a fresh budget of cuts (after an escalation)."""
+        """Try ``size`` again with a fresh budget of ``max_cuts`` cuts (after an escalation)."""
         self.escalations += 1
-        self._consecutive_cuts = 0
+        self._budget = self._consecutive_cuts + self.max_cuts
         self.step = size
 
     @property
     def consecutive_cuts(self) -> int:
-        """Cuts since the last accepted step."""
+        """Failed attempts since the last accepted step."""
         return self._consecutive_cuts
 
     def statistics(self) -> dict[str, float | int | None]:
@@ -195,6 +197,7 @@ def take_step(
     (size, result)
         The accepted step and its solve.
     """
+    escalated = False
     while True:
         size = controller.size(remaining)
         result = attempt(start, start + size)
@@ -208,8 +211,11 @@ def take_step(
         if not controller.failed(size):
             if escalate is not None and escalate():
                 controller.restart(size)
+                escalated = True
                 continue
             message = failure(start, start + size, result)
+            if escalated:
+                message += " (the last attempts with blended tangents)"
             if controller.step < controller.minimum:
                 message += f" (the next cut would take the step below {controller.minimum:.3g})"
             raise SolverError(
