@@ -5,10 +5,15 @@ singular value of smallest magnitude carries the sign (the "invertible finite el
 convention of Irving et al. 2004), so at most one entry of ``sigma`` is negative and
 ``|sigma|`` is sorted in decreasing order.
 
-The decomposition is a one-sided (Hestenes) Jacobi iteration on the columns of ``F``: it works
-on ``F`` itself rather than ``FᵀF``, so small singular values keep their relative accuracy, and
-it needs no allocation. ``U`` is completed with cross products, which makes it a rotation even
-when ``F`` is rank deficient.
+The 3×3 decomposition is a one-sided (Hestenes) Jacobi iteration on the columns of ``F``: it
+works on ``F`` itself rather than ``FᵀF``, so small singular values keep their relative accuracy,
+and it needs no allocation. It starts from an estimate of ``V`` taken in closed form from the
+eigenvectors of ``FᵀF``: that estimate alone would lose the small singular values (``FᵀF`` squares
+the condition number), but as a starting point it leaves the Jacobi iteration rotations of
+round-off size, so one sweep (instead of four from the identity) usually meets the convergence
+test. Where the estimate is poor (clustered or tiny singular values) the iteration simply takes
+more sweeps; its convergence test, not the estimate, decides the accuracy. ``U`` is completed with
+cross products, which makes it a rotation even when ``F`` is rank deficient.
 """
 
 from __future__ import annotations
@@ -27,6 +32,9 @@ _SMALL_ANGLE = 5e-5
 _CONVERGED_TANGENT = 1e-8
 # A column this much shorter than the longest carries no direction information.
 _RANK_TOLERANCE = 1e-13
+# FᵀF closer than this (spread of eigenvalues over their mean, squared) to a multiple of the
+# identity has no eigenvector information above round-off: the iteration starts from V = I.
+_ISOTROPIC_TOLERANCE = 1e-24
 
 
 @numba.njit(cache=True)
@@ -84,12 +92,122 @@ def _jacobi_pair(wp, wq, vp, vq):
 
 
 @numba.njit(cache=True)
+def _cross(x, y):
+    return (x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0])
+
+
+@numba.njit(cache=True)
+def _times(w0, w1, w2, v):
+    """Return the matrix with columns w0, w1, w2 times the vector v."""
+    return (
+        w0[0] * v[0] + w1[0] * v[1] + w2[0] * v[2],
+        w0[1] * v[0] + w1[1] * v[1] + w2[1] * v[2],
+        w0[2] * v[0] + w1[2] * v[1] + w2[2] * v[2],
+    )
+
+
+@numba.njit(cache=True)
+def _largest_cubic_root(r):
+    """Largest root c of 4c³ − 3c = r for 0 ≤ r ≤ 1, i.e. cos(arccos(r)/3), in [√3/2, 1].
+
+    The function is analytic on [−1 + δ, 1] (its branch point is r = −1), so a degree-5 Chebyshev
+    interpolant on [0, 1] is within 7e-7 of it; one Newton step on the cubic, whose derivative
+    12c² − 3 stays in [6, 9], takes that to 1e-12. This replaces arccos, cos and sin (and their
+    latency) in the trigonometric formula for the eigenvalues of a symmetric 3×3 matrix.
+    """
+    c = 0.8660260610588345 + r * (
+        0.16661885651499783
+        + r
+        * (
+            -0.04752501393228965
+            + r * (0.021899627344998507 + r * (-0.008966451200201675 + r * 0.0019473016104996077))
+        )
+    )
+    return c - (4.0 * c * c * c - 3.0 * c - r) / (12.0 * c * c - 3.0)
+
+
+@numba.njit(cache=True)
+def _warm_start(w0, w1, w2):
+    """Return the Jacobi starting point (F V, V) column by column, V a rotation.
+
+    V comes from the eigenvectors of A = FᵀF: the eigenvector of the eigenvalue farthest from the
+    other two (by the trigonometric formula, which names it by the sign of det(A − qI)), as the
+    longest cross product of two rows of A − λI, then the exact rotation of the 2×2 problem in its
+    orthogonal complement. Its error is about round-off over the relative eigenvalue gaps, which
+    the Jacobi sweeps that follow remove; a V = I fallback covers an A with no eigenvector
+    information (a multiple of the identity to round-off) and a non-finite A.
+    """
+    a00 = _dot(w0, w0)
+    a11 = _dot(w1, w1)
+    a22 = _dot(w2, w2)
+    a01 = _dot(w0, w1)
+    a02 = _dot(w0, w2)
+    a12 = _dot(w1, w2)
+    # A = q I + p B with tr B = 0 and tr B² = 6; eigenvalues q + 2p c with 4c³ − 3c = det(B)/2.
+    q = (a00 + a11 + a22) * (1.0 / 3.0)
+    b00 = a00 - q
+    b11 = a11 - q
+    b22 = a22 - q
+    p2 = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) * (
+        1.0 / 6.0
+    )
+    identity = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+    if not p2 > _ISOTROPIC_TOLERANCE * q * q:
+        return w0, w1, w2, identity[0], identity[1], identity[2]
+    p = np.sqrt(p2)
+    det_pb = (
+        b00 * (b11 * b22 - a12 * a12)
+        - a01 * (a01 * b22 - a12 * a02)
+        + a02 * (a01 * a12 - b11 * a02)
+    )
+    r = 0.5 * det_pb / (p2 * p)
+    # r ≥ 0: the largest eigenvalue is the isolated one (roots c, with c ≥ √3/2 the largest);
+    # r < 0: the smallest (the roots of −r negated).
+    largest = r >= 0.0
+    c = _largest_cubic_root(min(1.0, abs(r)))
+    lam = q + 2.0 * p * c if largest else q - 2.0 * p * c
+    r0 = (a00 - lam, a01, a02)
+    r1 = (a01, a11 - lam, a12)
+    r2 = (a02, a12, a22 - lam)
+    c01 = _cross(r0, r1)
+    c02 = _cross(r0, r2)
+    c12 = _cross(r1, r2)
+    n01 = _dot(c01, c01)
+    n02 = _dot(c02, c02)
+    n12 = _dot(c12, c12)
+    if n01 >= n02 and n01 >= n12:
+        x, nx = c01, n01
+    elif n02 >= n12:
+        x, nx = c02, n02
+    else:
+        x, nx = c12, n12
+    if not nx > 0.0:
+        return w0, w1, w2, identity[0], identity[1], identity[2]
+    inverse = 1.0 / np.sqrt(nx)
+    x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
+    y = _unit_perpendicular(x[0], x[1], x[2])
+    z = _cross(x, y)
+    fx = _times(w0, w1, w2, x)
+    fy, fz, y, z, _ = _jacobi_pair(_times(w0, w1, w2, y), _times(w0, w1, w2, z), y, z)
+    # (x, y, z) and its cyclic shift are rotations; the isolated eigenvector goes where the sort
+    # puts it, so that the sort after the sweeps seldom swaps.
+    if largest:
+        return fx, fy, fz, x, y, z
+    return fy, fz, fx, y, z, x
+
+
+@numba.njit(cache=True)
 def _negated(x):
     return (-x[0], -x[1], -x[2])
 
 
 @numba.njit(cache=True)
-def _polar_svd_3(F, U, sigma, V):
+def _polar_svd_3_sweeps(F, U, sigma, V, warm):
+    """Compute the 3×3 polar SVD; return the number of Jacobi sweeps.
+
+    ``warm`` chooses the closed-form starting point (else V = I), so that the tests can compare
+    both starts and see which path a matrix takes.
+    """
     scale = 0.0
     for i in range(3):
         for j in range(3):
@@ -100,16 +218,21 @@ def _polar_svd_3(F, U, sigma, V):
             for j in range(3):
                 U[i, j] = 1.0 if i == j else 0.0
                 V[i, j] = U[i, j]
-        return
+        return 0
     # Scaling by the largest entry keeps squared column norms far from overflow and underflow.
     inverse_scale = 1.0 / scale
     w0 = (F[0, 0] * inverse_scale, F[1, 0] * inverse_scale, F[2, 0] * inverse_scale)
     w1 = (F[0, 1] * inverse_scale, F[1, 1] * inverse_scale, F[2, 1] * inverse_scale)
     w2 = (F[0, 2] * inverse_scale, F[1, 2] * inverse_scale, F[2, 2] * inverse_scale)
-    v0 = (1.0, 0.0, 0.0)
-    v1 = (0.0, 1.0, 0.0)
-    v2 = (0.0, 0.0, 1.0)
-    for _ in range(_MAX_SWEEPS):
+    if warm:
+        w0, w1, w2, v0, v1, v2 = _warm_start(w0, w1, w2)
+    else:
+        v0 = (1.0, 0.0, 0.0)
+        v1 = (0.0, 1.0, 0.0)
+        v2 = (0.0, 0.0, 1.0)
+    sweeps = 0
+    while sweeps < _MAX_SWEEPS:
+        sweeps += 1
         w0, w1, v0, v1, t01 = _jacobi_pair(w0, w1, v0, v1)
         w0, w2, v0, v2, t02 = _jacobi_pair(w0, w2, v0, v2)
         w1, w2, v1, v2, t12 = _jacobi_pair(w1, w2, v1, v2)
@@ -140,11 +263,7 @@ def _polar_svd_3(F, U, sigma, V):
         u1 = (x[0] * inverse_second, x[1] * inverse_second, x[2] * inverse_second)
     else:
         u1 = _unit_perpendicular(u0[0], u0[1], u0[2])
-    u2 = (
-        u0[1] * u1[2] - u0[2] * u1[1],
-        u0[2] * u1[0] - u0[0] * u1[2],
-        u0[0] * u1[1] - u0[1] * u1[0],
-    )
+    u2 = _cross(u0, u1)
     # Projecting onto u2 gives the last singular value its sign: negative iff det F < 0.
     third = _dot(w2, u2)
     for i in range(3):
@@ -157,6 +276,12 @@ def _polar_svd_3(F, U, sigma, V):
     sigma[0] = first * scale
     sigma[1] = second * scale
     sigma[2] = third * scale
+    return sweeps
+
+
+@numba.njit(cache=True)
+def _polar_svd_3(F, U, sigma, V):
+    _polar_svd_3_sweeps(F, U, sigma, V, True)
 
 
 @numba.njit(cache=True)
