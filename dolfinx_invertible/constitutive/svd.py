@@ -30,6 +30,9 @@ _MAX_SWEEPS = 12
 _SMALL_ANGLE = 5e-5
 # A sweep whose rotations all have |tan θ| below this leaves cosines of round-off size.
 _CONVERGED_TANGENT = 1e-8
+# Below this every |tan θ| of a sweep, the three rotations may be applied at once to first order:
+# what that neglects (products of two tangents, 1 − cos θ) is below 1e-18, relative to each column.
+_FIRST_ORDER_TANGENT = 1e-9
 # A column this much shorter than the longest carries no direction information.
 _RANK_TOLERANCE = 1e-13
 # FᵀF closer than this (spread of eigenvalues over their mean, squared) to a multiple of the
@@ -197,6 +200,71 @@ def _warm_start(w0, w1, w2):
 
 
 @numba.njit(cache=True)
+def _first_order_tangent(alpha, beta, gamma):
+    """Return tan θ of the rotation that makes a pair orthogonal, or inf if it is not small.
+
+    Same rotation as `_jacobi_pair` (α, β the squared lengths, γ the dot product), to first order
+    in τ = γ/(β − α); inf when |τ| ≥ `_FIRST_ORDER_TANGENT`, including β = α with γ ≠ 0.
+    """
+    if gamma * gamma <= _ORTHOGONALITY_TOLERANCE**2 * (alpha * beta):
+        return 0.0
+    difference = beta - alpha
+    if abs(gamma) < _FIRST_ORDER_TANGENT * abs(difference):
+        return gamma / difference
+    return np.inf
+
+
+@numba.njit(cache=True)
+def _first_order_sweep(w0, w1, w2, v0, v1, v2):
+    """Orthogonalise nearly orthogonal columns with the three rotations of a sweep at once.
+
+    Returns whether every rotation was small enough (`_FIRST_ORDER_TANGENT`) and the new columns
+    (W and V times I + T, T the antisymmetric matrix of the tangents). Unlike a sweep, the three
+    tangents are independent, so their divisions do not wait for each other. On False the columns
+    are returned unchanged.
+    """
+    a0 = _dot(w0, w0)
+    a1 = _dot(w1, w1)
+    a2 = _dot(w2, w2)
+    t01 = _first_order_tangent(a0, a1, _dot(w0, w1))
+    t02 = _first_order_tangent(a0, a2, _dot(w0, w2))
+    t12 = _first_order_tangent(a1, a2, _dot(w1, w2))
+    if not max(abs(t01), abs(t02), abs(t12)) < _FIRST_ORDER_TANGENT:
+        return False, w0, w1, w2, v0, v1, v2
+    x0 = (
+        w0[0] - t01 * w1[0] - t02 * w2[0],
+        w0[1] - t01 * w1[1] - t02 * w2[1],
+        w0[2] - t01 * w1[2] - t02 * w2[2],
+    )
+    x1 = (
+        w1[0] + t01 * w0[0] - t12 * w2[0],
+        w1[1] + t01 * w0[1] - t12 * w2[1],
+        w1[2] + t01 * w0[2] - t12 * w2[2],
+    )
+    x2 = (
+        w2[0] + t02 * w0[0] + t12 * w1[0],
+        w2[1] + t02 * w0[1] + t12 * w1[1],
+        w2[2] + t02 * w0[2] + t12 * w1[2],
+    )
+    y0 = (
+        v0[0] - t01 * v1[0] - t02 * v2[0],
+        v0[1] - t01 * v1[1] - t02 * v2[1],
+        v0[2] - t01 * v1[2] - t02 * v2[2],
+    )
+    y1 = (
+        v1[0] + t01 * v0[0] - t12 * v2[0],
+        v1[1] + t01 * v0[1] - t12 * v2[1],
+        v1[2] + t01 * v0[2] - t12 * v2[2],
+    )
+    y2 = (
+        v2[0] + t02 * v0[0] + t12 * v1[0],
+        v2[1] + t02 * v0[1] + t12 * v1[1],
+        v2[2] + t02 * v0[2] + t12 * v1[2],
+    )
+    return True, x0, x1, x2, y0, y1, y2
+
+
+@numba.njit(cache=True)
 def _negated(x):
     return (-x[0], -x[1], -x[2])
 
@@ -206,7 +274,8 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     """Compute the 3×3 polar SVD; return the number of Jacobi sweeps.
 
     ``warm`` chooses the closed-form starting point (else V = I), so that the tests can compare
-    both starts and see which path a matrix takes.
+    both starts and see which path a matrix takes. 0 sweeps: the starting point needed only the
+    first-order sweep.
     """
     scale = 0.0
     for i in range(3):
@@ -226,20 +295,21 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     w2 = (F[0, 2] * inverse_scale, F[1, 2] * inverse_scale, F[2, 2] * inverse_scale)
     if warm:
         w0, w1, w2, v0, v1, v2 = _warm_start(w0, w1, w2)
+        done, w0, w1, w2, v0, v1, v2 = _first_order_sweep(w0, w1, w2, v0, v1, v2)
     else:
         v0 = (1.0, 0.0, 0.0)
         v1 = (0.0, 1.0, 0.0)
         v2 = (0.0, 0.0, 1.0)
+        done = False
     sweeps = 0
-    while sweeps < _MAX_SWEEPS:
+    while not done and sweeps < _MAX_SWEEPS:
         sweeps += 1
         w0, w1, v0, v1, t01 = _jacobi_pair(w0, w1, v0, v1)
         w0, w2, v0, v2, t02 = _jacobi_pair(w0, w2, v0, v2)
         w1, w2, v1, v2, t12 = _jacobi_pair(w1, w2, v1, v2)
         # Each rotation zeroes its pair's cosine; the later ones of a sweep bring back at most
         # the product of two tangents: below 1e-8 each, the sweep has converged to round-off.
-        if max(t01, t02, t12) < _CONVERGED_TANGENT:
-            break
+        done = max(t01, t02, t12) < _CONVERGED_TANGENT
 
     # Sort columns by decreasing length; each swap negates one column so det V stays +1.
     n0, n1, n2 = _dot(w0, w0), _dot(w1, w1), _dot(w2, w2)
