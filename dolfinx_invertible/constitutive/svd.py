@@ -38,6 +38,11 @@ _RANK_TOLERANCE = 1e-13
 # FᵀF closer than this (spread of eigenvalues over their mean, squared) to a multiple of the
 # identity has no eigenvector information above round-off: the iteration starts from V = I.
 _ISOTROPIC_TOLERANCE = 1e-24
+_SQRT3 = 1.7320508075688772
+# sin θ of the trigonometric formula below which the two eigenvalues nearest each other are too
+# close (gap √3 sin θ times the spread) for the null-vector formula to give the second
+# eigenvector to 1e-11: its error is about (1e-14 + round-off of A over the spread) / sin θ.
+_SPLIT_SINE = 1e-3
 
 
 @numba.njit(cache=True)
@@ -113,31 +118,62 @@ def _times(w0, w1, w2, v):
 def _largest_cubic_root(r):
     """Largest root c of 4c³ − 3c = r for 0 ≤ r ≤ 1, i.e. cos(arccos(r)/3), in [√3/2, 1].
 
-    The function is analytic on [−1 + δ, 1] (its branch point is r = −1), so a degree-5 Chebyshev
-    interpolant on [0, 1] is within 7e-7 of it; one Newton step on the cubic, whose derivative
-    12c² − 3 stays in [6, 9], takes that to 1e-12. This replaces arccos, cos and sin (and their
+    The function is analytic on (−1, 1] (its branch point is r = −1), so a degree-6 Chebyshev
+    interpolant on [0, 1] is within 9e-8 of it; one Newton step on the cubic, whose derivative
+    12c² − 3 stays in [6, 9], takes that to 1.4e-14. This replaces arccos, cos and sin (and their
     latency) in the trigonometric formula for the eigenvalues of a symmetric 3×3 matrix.
     """
-    c = 0.8660260610588345 + r * (
-        0.16661885651499783
+    c = 0.8660254934184151 + r * (
+        0.16665781361554563
         + r
         * (
-            -0.04752501393228965
-            + r * (0.021899627344998507 + r * (-0.008966451200201675 + r * 0.0019473016104996077))
+            -0.04796516703978661
+            + r
+            * (
+                0.02373457681002681
+                + r
+                * (-0.012443532696727697 + r * (0.004995539940645294 - r * 0.0010047751159650683))
+            )
         )
     )
     return c - (4.0 * c * c * c - 3.0 * c - r) / (12.0 * c * c - 3.0)
 
 
 @numba.njit(cache=True)
+def _eigenvector(a00, a11, a22, a01, a02, a12, lam):
+    """Return a (non-unit) null vector of A − λI and its squared length.
+
+    The longest of the cross products of two rows: for a simple eigenvalue λ the rows span the
+    plane orthogonal to the eigenvector, and the longest product is the best conditioned.
+    """
+    r0 = (a00 - lam, a01, a02)
+    r1 = (a01, a11 - lam, a12)
+    r2 = (a02, a12, a22 - lam)
+    c01 = _cross(r0, r1)
+    c02 = _cross(r0, r2)
+    c12 = _cross(r1, r2)
+    n01 = _dot(c01, c01)
+    n02 = _dot(c02, c02)
+    n12 = _dot(c12, c12)
+    if n01 >= n02 and n01 >= n12:
+        return c01, n01
+    if n02 >= n12:
+        return c02, n02
+    return c12, n12
+
+
+@numba.njit(cache=True)
 def _warm_start(w0, w1, w2):
     """Return the Jacobi starting point (F V, V) column by column, V a rotation.
 
-    V comes from the eigenvectors of A = FᵀF: the eigenvector of the eigenvalue farthest from the
-    other two (by the trigonometric formula, which names it by the sign of det(A − qI)), as the
-    longest cross product of two rows of A − λI, then the exact rotation of the 2×2 problem in its
-    orthogonal complement. Its error is about round-off over the relative eigenvalue gaps, which
-    the Jacobi sweeps that follow remove; a V = I fallback covers an A with no eigenvector
+    V holds eigenvectors of A = FᵀF, eigenvalues from the trigonometric formula. First x, the
+    eigenvector of the eigenvalue farthest from the other two, as the null vector of A − λI.
+    Then, when the other two are well apart (sin θ ≥ `_SPLIT_SINE`, below), y, the eigenvector of
+    the other end of the spectrum, the same way and side by side with x, orthogonalised against
+    it; otherwise (a near double eigenvalue, or a spread so wide that the small end is round-off
+    of the large one) the exact Jacobi rotation in the plane orthogonal to x, which needs no gap.
+    The cross product completes V. The error of the result is about round-off over the relative
+    eigenvalue gaps, which the sweeps that follow remove. V = I covers an A with no eigenvector
     information (a multiple of the identity to round-off) and a non-finite A.
     """
     a00 = _dot(w0, w0)
@@ -146,7 +182,7 @@ def _warm_start(w0, w1, w2):
     a01 = _dot(w0, w1)
     a02 = _dot(w0, w2)
     a12 = _dot(w1, w2)
-    # A = q I + p B with tr B = 0 and tr B² = 6; eigenvalues q + 2p c with 4c³ − 3c = det(B)/2.
+    # A = q I + p B with tr B = 0 and tr B² = 6: eigenvalues q + 2p cos θ_k, cos 3θ_k = det(B)/2.
     q = (a00 + a11 + a22) * (1.0 / 3.0)
     b00 = a00 - q
     b11 = a11 - q
@@ -164,39 +200,45 @@ def _warm_start(w0, w1, w2):
         + a02 * (a01 * a12 - b11 * a02)
     )
     r = 0.5 * det_pb / (p2 * p)
-    # r ≥ 0: the largest eigenvalue is the isolated one (roots c, with c ≥ √3/2 the largest);
-    # r < 0: the smallest (the roots of −r negated).
-    largest = r >= 0.0
-    c = _largest_cubic_root(min(1.0, abs(r)))
-    lam = q + 2.0 * p * c if largest else q - 2.0 * p * c
-    r0 = (a00 - lam, a01, a02)
-    r1 = (a01, a11 - lam, a12)
-    r2 = (a02, a12, a22 - lam)
-    c01 = _cross(r0, r1)
-    c02 = _cross(r0, r2)
-    c12 = _cross(r1, r2)
-    n01 = _dot(c01, c01)
-    n02 = _dot(c02, c02)
-    n12 = _dot(c12, c12)
-    if n01 >= n02 and n01 >= n12:
-        x, nx = c01, n01
-    elif n02 >= n12:
-        x, nx = c02, n02
-    else:
-        x, nx = c12, n12
+    # With r = cos 3θ ≥ 0 and c = cos θ the largest root, the roots are c (the largest
+    # eigenvalue) and −(c ± √3 sin θ)/2, the smallest with +; for r < 0 all three negate. sin θ
+    # from sin 3θ = sin θ (4c² − 1), with 1 − r² in factored form.
+    sign = np.copysign(1.0, r)
+    ar = min(1.0, abs(r))
+    c = _largest_cubic_root(ar)
+    s = np.sqrt((1.0 - ar) * (1.0 + ar)) / (4.0 * c * c - 1.0)
+    x, nx = _eigenvector(a00, a11, a22, a01, a02, a12, q + sign * (2.0 * p) * c)
     if not nx > 0.0:
         return w0, w1, w2, identity[0], identity[1], identity[2]
+    if s < _SPLIT_SINE:
+        inverse = 1.0 / np.sqrt(nx)
+        x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
+        y = _unit_perpendicular(x[0], x[1], x[2])
+        z = _cross(x, y)
+        fy, fz, y, z, _ = _jacobi_pair(_times(w0, w1, w2, y), _times(w0, w1, w2, z), y, z)
+        # (x, y, z) and its cyclic shift are rotations; x goes where the sort would put it.
+        if sign > 0.0:
+            return _times(w0, w1, w2, x), fy, fz, x, y, z
+        return fy, fz, _times(w0, w1, w2, x), y, z, x
+    y, ny = _eigenvector(a00, a11, a22, a01, a02, a12, q - sign * p * (c + _SQRT3 * s))
     inverse = 1.0 / np.sqrt(nx)
+    # y minus its component along x, using x before normalisation (no wait for the square root).
+    projection = _dot(x, y) / nx
+    y = (y[0] - projection * x[0], y[1] - projection * x[1], y[2] - projection * x[2])
     x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
-    y = _unit_perpendicular(x[0], x[1], x[2])
+    length2 = _dot(y, y)
+    if length2 > _RANK_TOLERANCE**2 * ny:
+        inverse = 1.0 / np.sqrt(length2)
+        y = (y[0] * inverse, y[1] * inverse, y[2] * inverse)
+    else:
+        y = _unit_perpendicular(x[0], x[1], x[2])
+    # Columns by decreasing eigenvalue: (x, y × x, y) for r ≥ 0, (y, x × y, x) for r < 0; both
+    # are cyclic shifts of (a, b, a × b), rotations.
+    if sign > 0.0:
+        z = _cross(y, x)
+        return _times(w0, w1, w2, x), _times(w0, w1, w2, z), _times(w0, w1, w2, y), x, z, y
     z = _cross(x, y)
-    fx = _times(w0, w1, w2, x)
-    fy, fz, y, z, _ = _jacobi_pair(_times(w0, w1, w2, y), _times(w0, w1, w2, z), y, z)
-    # (x, y, z) and its cyclic shift are rotations; the isolated eigenvector goes where the sort
-    # puts it, so that the sort after the sweeps seldom swaps.
-    if largest:
-        return fx, fy, fz, x, y, z
-    return fy, fz, fx, y, z, x
+    return _times(w0, w1, w2, y), _times(w0, w1, w2, z), _times(w0, w1, w2, x), y, z, x
 
 
 @numba.njit(cache=True)
