@@ -39,6 +39,8 @@ _RANK_TOLERANCE = 1e-13
 # identity has no eigenvector information above round-off: the iteration starts from V = I.
 _ISOTROPIC_TOLERANCE = 1e-24
 _SQRT3 = 1.7320508075688772
+_UNSCALED_MIN = 1e-40
+_UNSCALED_MAX = 1e40
 # sin θ of the trigonometric formula below which the two eigenvalues nearest each other are too
 # close (gap √3 sin θ times the spread) for the null-vector formula to give the second
 # eigenvector to 1e-11: its error is about (1e-14 + round-off of A over the spread) / sin θ.
@@ -319,22 +321,30 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     both starts and see which path a matrix takes. 0 sweeps: the starting point needed only the
     first-order sweep.
     """
-    scale = 0.0
-    for i in range(3):
-        for j in range(3):
-            scale = max(scale, abs(F[i, j]))
-    if scale == 0.0:
+    w0 = (F[0, 0], F[1, 0], F[2, 0])
+    w1 = (F[0, 1], F[1, 1], F[2, 1])
+    w2 = (F[0, 2], F[1, 2], F[2, 2])
+    # Within these bounds on |F|² no product the iteration forms (up to the fourth power of FᵀF
+    # in the warm start's cross products) overflows or loses precision to underflow; outside
+    # them (or for a non-finite F) the columns are scaled by the largest entry first.
+    scale = 1.0
+    norm2 = _dot(w0, w0) + _dot(w1, w1) + _dot(w2, w2)
+    if not _UNSCALED_MIN < norm2 < _UNSCALED_MAX:
+        scale = 0.0
         for i in range(3):
-            sigma[i] = 0.0
             for j in range(3):
-                U[i, j] = 1.0 if i == j else 0.0
-                V[i, j] = U[i, j]
-        return 0
-    # Scaling by the largest entry keeps squared column norms far from overflow and underflow.
-    inverse_scale = 1.0 / scale
-    w0 = (F[0, 0] * inverse_scale, F[1, 0] * inverse_scale, F[2, 0] * inverse_scale)
-    w1 = (F[0, 1] * inverse_scale, F[1, 1] * inverse_scale, F[2, 1] * inverse_scale)
-    w2 = (F[0, 2] * inverse_scale, F[1, 2] * inverse_scale, F[2, 2] * inverse_scale)
+                scale = max(scale, abs(F[i, j]))
+        if scale == 0.0:
+            for i in range(3):
+                sigma[i] = 0.0
+                for j in range(3):
+                    U[i, j] = 1.0 if i == j else 0.0
+                    V[i, j] = U[i, j]
+            return 0
+        inverse_scale = 1.0 / scale
+        w0 = (w0[0] * inverse_scale, w0[1] * inverse_scale, w0[2] * inverse_scale)
+        w1 = (w1[0] * inverse_scale, w1[1] * inverse_scale, w1[2] * inverse_scale)
+        w2 = (w2[0] * inverse_scale, w2[1] * inverse_scale, w2[2] * inverse_scale)
     if warm:
         w0, w1, w2, v0, v1, v2 = _warm_start(w0, w1, w2)
         done, w0, w1, w2, v0, v1, v2 = _first_order_sweep(w0, w1, w2, v0, v1, v2)
@@ -362,17 +372,16 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     if n2 > n1:
         w1, w2, v1, v2, n1, n2 = w2, _negated(w1), v2, _negated(v1), n2, n1
 
-    # W = F V / scale has orthogonal columns sigma_i u_i; build U as a rotation from them.
+    # W = F V / scale has orthogonal columns sigma_i u_i; build U as a rotation from them. The
+    # iteration stops only with every cosine between columns at round-off (relative to both
+    # lengths, however short), so u0 and u1 are the normalised columns, computed side by side.
     first = np.sqrt(n0)
+    second = np.sqrt(n1)
     inverse_first = 1.0 / first
     u0 = (w0[0] * inverse_first, w0[1] * inverse_first, w0[2] * inverse_first)
-    # Re-orthogonalise the second column against the first before normalising it.
-    projection = _dot(w1, u0)
-    x = (w1[0] - projection * u0[0], w1[1] - projection * u0[1], w1[2] - projection * u0[2])
-    second = np.sqrt(_dot(x, x))
     if second > _RANK_TOLERANCE * first:
         inverse_second = 1.0 / second
-        u1 = (x[0] * inverse_second, x[1] * inverse_second, x[2] * inverse_second)
+        u1 = (w1[0] * inverse_second, w1[1] * inverse_second, w1[2] * inverse_second)
     else:
         u1 = _unit_perpendicular(u0[0], u0[1], u0[2])
     u2 = _cross(u0, u1)
