@@ -253,6 +253,12 @@ def test_warm_start_agrees_with_cold_start(rng, name):
     np.testing.assert_allclose(sigma[big], sigma0[big], rtol=1e-9)
     ref = np.linalg.svd(F, compute_uv=False)
     np.testing.assert_allclose(np.abs(sigma), ref, rtol=1e-12, atol=1e-14 * scale.max())
+    # Both paths are backward stable to a few ulps, tighter than the contract's 1e-12.
+    for W, s, X in ((U, sigma, V), (U0, sigma0, V0)):
+        err = np.linalg.norm(compose(s, W, X) - F, axis=(1, 2)) / np.linalg.norm(F, axis=(1, 2))
+        assert err.max() < 1e-14, err.max()
+        for Q in (W, X):
+            assert np.abs(np.swapaxes(Q, 1, 2) @ Q - np.eye(3)).max() < 1e-14
 
 
 def test_warm_start_needs_no_sweep(rng):
