@@ -40,6 +40,13 @@ _RANK_TOLERANCE = 1e-13
 _ISOTROPIC_TOLERANCE = 1e-24
 _SQRT3 = 1.7320508075688772
 _UNSCALED_MIN = 1e-40
+# Starting points of the 3×3 iteration (returned for the tests): V = I, one plane rotation of an
+# F whose columns are orthogonal but for one pair, eigenvectors with the rotation in the plane of
+# a close pair, eigenvectors of both ends of the spectrum.
+START_IDENTITY = 0
+START_ONE_PAIR = 1
+START_CLOSE_PAIR = 2
+START_EIGENVECTORS = 3
 _UNSCALED_MAX = 1e40
 # sin θ of the trigonometric formula below which the two eigenvalues nearest each other are too
 # close (gap √3 sin θ times the spread) for the null-vector formula to give the second
@@ -166,17 +173,19 @@ def _eigenvector(a00, a11, a22, a01, a02, a12, lam):
 
 @numba.njit(cache=True)
 def _warm_start(w0, w1, w2):
-    """Return the Jacobi starting point (F V, V) column by column, V a rotation.
+    """Return the Jacobi starting point (F V, V) column by column, V a rotation, and its code.
 
-    V holds eigenvectors of A = FᵀF, eigenvalues from the trigonometric formula. First x, the
-    eigenvector of the eigenvalue farthest from the other two, as the null vector of A − λI.
-    Then, when the other two are well apart (sin θ ≥ `_SPLIT_SINE`, below), y, the eigenvector of
-    the other end of the spectrum, the same way and side by side with x, orthogonalised against
-    it; otherwise (a near double eigenvalue, or a spread so wide that the small end is round-off
-    of the large one) the exact Jacobi rotation in the plane orthogonal to x, which needs no gap.
-    The cross product completes V. The error of the result is about round-off over the relative
-    eigenvalue gaps, which the sweeps that follow remove. V = I covers an A with no eigenvector
-    information (a multiple of the identity to round-off) and a non-finite A.
+    When F's columns are orthogonal but for at most one pair, V is the exact rotation of that
+    pair. Otherwise V holds eigenvectors of A = FᵀF, eigenvalues from the trigonometric formula.
+    First x, the eigenvector of the eigenvalue farthest from the other two, as the null vector of
+    A − λI. Then, when the other two are well apart (sin θ ≥ `_SPLIT_SINE`, below), y, the
+    eigenvector of the other end of the spectrum, the same way and side by side with x,
+    orthogonalised against it; otherwise (a near double eigenvalue, or a spread so wide that the
+    small end is round-off of the large one) the exact Jacobi rotation in the plane orthogonal to
+    x, which needs no gap. The cross product completes V. The error of the result is about
+    round-off over the relative eigenvalue gaps, which the sweeps that follow remove. V = I
+    covers an A with no eigenvector information (a multiple of the identity to round-off) and a
+    non-finite A.
     """
     a00 = _dot(w0, w0)
     a11 = _dot(w1, w1)
@@ -194,7 +203,23 @@ def _warm_start(w0, w1, w2):
     )
     identity = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
     if not p2 > _ISOTROPIC_TOLERANCE * q * q:
-        return w0, w1, w2, identity[0], identity[1], identity[2]
+        return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY
+    # Columns already orthogonal (diagonal or axis-aligned F, often a benchmark's or a test's)
+    # but for at most one pair: one exact rotation of that pair is cheaper than eigenvectors,
+    # and it leaves the others orthogonal (both new columns stay in the pair's plane).
+    tolerance = _ORTHOGONALITY_TOLERANCE**2
+    coupled01 = not a01 * a01 <= tolerance * (a00 * a11)
+    coupled02 = not a02 * a02 <= tolerance * (a00 * a22)
+    coupled12 = not a12 * a12 <= tolerance * (a11 * a22)
+    if int(coupled01) + int(coupled02) + int(coupled12) <= 1:
+        v0, v1, v2 = identity
+        if coupled01:
+            w0, w1, v0, v1, _ = _jacobi_pair(w0, w1, v0, v1)
+        elif coupled02:
+            w0, w2, v0, v2, _ = _jacobi_pair(w0, w2, v0, v2)
+        elif coupled12:
+            w1, w2, v1, v2, _ = _jacobi_pair(w1, w2, v1, v2)
+        return w0, w1, w2, v0, v1, v2, START_ONE_PAIR
     p = np.sqrt(p2)
     det_pb = (
         b00 * (b11 * b22 - a12 * a12)
@@ -211,7 +236,7 @@ def _warm_start(w0, w1, w2):
     s = np.sqrt((1.0 - ar) * (1.0 + ar)) / (4.0 * c * c - 1.0)
     x, nx = _eigenvector(a00, a11, a22, a01, a02, a12, q + sign * (2.0 * p) * c)
     if not nx > 0.0:
-        return w0, w1, w2, identity[0], identity[1], identity[2]
+        return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY
     if s < _SPLIT_SINE:
         inverse = 1.0 / np.sqrt(nx)
         x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
@@ -220,8 +245,8 @@ def _warm_start(w0, w1, w2):
         fy, fz, y, z, _ = _jacobi_pair(_times(w0, w1, w2, y), _times(w0, w1, w2, z), y, z)
         # (x, y, z) and its cyclic shift are rotations; x goes where the sort would put it.
         if sign > 0.0:
-            return _times(w0, w1, w2, x), fy, fz, x, y, z
-        return fy, fz, _times(w0, w1, w2, x), y, z, x
+            return _times(w0, w1, w2, x), fy, fz, x, y, z, START_CLOSE_PAIR
+        return fy, fz, _times(w0, w1, w2, x), y, z, x, START_CLOSE_PAIR
     y, ny = _eigenvector(a00, a11, a22, a01, a02, a12, q - sign * p * (c + _SQRT3 * s))
     inverse = 1.0 / np.sqrt(nx)
     # y minus its component along x, using x before normalisation (no wait for the square root).
@@ -238,9 +263,11 @@ def _warm_start(w0, w1, w2):
     # are cyclic shifts of (a, b, a × b), rotations.
     if sign > 0.0:
         z = _cross(y, x)
-        return _times(w0, w1, w2, x), _times(w0, w1, w2, z), _times(w0, w1, w2, y), x, z, y
+        fx, fz, fy = _times(w0, w1, w2, x), _times(w0, w1, w2, z), _times(w0, w1, w2, y)
+        return fx, fz, fy, x, z, y, START_EIGENVECTORS
     z = _cross(x, y)
-    return _times(w0, w1, w2, y), _times(w0, w1, w2, z), _times(w0, w1, w2, x), y, z, x
+    fy, fz, fx = _times(w0, w1, w2, y), _times(w0, w1, w2, z), _times(w0, w1, w2, x)
+    return fy, fz, fx, y, z, x, START_EIGENVECTORS
 
 
 @numba.njit(cache=True)
@@ -315,11 +342,11 @@ def _negated(x):
 
 @numba.njit(cache=True)
 def _polar_svd_3_sweeps(F, U, sigma, V, warm):
-    """Compute the 3×3 polar SVD; return the number of Jacobi sweeps.
+    """Compute the 3×3 polar SVD; return the number of Jacobi sweeps and the starting point.
 
     ``warm`` chooses the closed-form starting point (else V = I), so that the tests can compare
     both starts and see which path a matrix takes. 0 sweeps: the starting point needed only the
-    first-order sweep.
+    first-order sweep. The starting point is one of the ``START_*`` codes.
     """
     w0 = (F[0, 0], F[1, 0], F[2, 0])
     w1 = (F[0, 1], F[1, 1], F[2, 1])
@@ -340,19 +367,20 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
                 for j in range(3):
                     U[i, j] = 1.0 if i == j else 0.0
                     V[i, j] = U[i, j]
-            return 0
+            return 0, START_IDENTITY
         inverse_scale = 1.0 / scale
         w0 = (w0[0] * inverse_scale, w0[1] * inverse_scale, w0[2] * inverse_scale)
         w1 = (w1[0] * inverse_scale, w1[1] * inverse_scale, w1[2] * inverse_scale)
         w2 = (w2[0] * inverse_scale, w2[1] * inverse_scale, w2[2] * inverse_scale)
     if warm:
-        w0, w1, w2, v0, v1, v2 = _warm_start(w0, w1, w2)
+        w0, w1, w2, v0, v1, v2, start = _warm_start(w0, w1, w2)
         done, w0, w1, w2, v0, v1, v2 = _first_order_sweep(w0, w1, w2, v0, v1, v2)
     else:
         v0 = (1.0, 0.0, 0.0)
         v1 = (0.0, 1.0, 0.0)
         v2 = (0.0, 0.0, 1.0)
         done = False
+        start = START_IDENTITY
     sweeps = 0
     while not done and sweeps < _MAX_SWEEPS:
         sweeps += 1
@@ -397,7 +425,7 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     sigma[0] = first * scale
     sigma[1] = second * scale
     sigma[2] = third * scale
-    return sweeps
+    return sweeps, start
 
 
 @numba.njit(cache=True)

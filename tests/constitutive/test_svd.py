@@ -197,9 +197,10 @@ def _svd_3_paths(F, warm):
     V = np.empty((n, 3, 3))
     sigma = np.empty((n, 3))
     sweeps = np.empty(n, dtype=np.int64)
+    starts = np.empty(n, dtype=np.int64)
     for i in range(n):
-        sweeps[i] = svd_module._polar_svd_3_sweeps(F[i], U[i], sigma[i], V[i], warm)
-    return U, sigma, V, sweeps
+        sweeps[i], starts[i] = svd_module._polar_svd_3_sweeps(F[i], U[i], sigma[i], V[i], warm)
+    return U, sigma, V, sweeps, starts
 
 
 @numba.njit(cache=False)
@@ -209,13 +210,12 @@ def _warm_start_V(F):
     B = np.empty((n, 3, 3))
     for i in range(n):
         f = F[i]
-        result = svd_module._warm_start(
+        b0, b1, b2, v0, v1, v2, _ = svd_module._warm_start(
             (f[0, 0], f[1, 0], f[2, 0]), (f[0, 1], f[1, 1], f[2, 1]), (f[0, 2], f[1, 2], f[2, 2])
         )
-        for j in range(3):
-            for k in range(3):
-                B[i, k, j] = result[j][k]
-                V[i, k, j] = result[3 + j][k]
+        for k in range(3):
+            B[i, k, 0], B[i, k, 1], B[i, k, 2] = b0[k], b1[k], b2[k]
+            V[i, k, 0], V[i, k, 1], V[i, k, 2] = v0[k], v1[k], v2[k]
     return V, B
 
 
@@ -242,9 +242,9 @@ ENSEMBLES = ["random", "near rest", "close pair", "tiny", "rank 1", "near isotro
 def test_warm_start_agrees_with_cold_start(rng, name):
     """Both starts satisfy the contract and give the same singular values."""
     F = _ensemble(rng, name)
-    U, sigma, V, _ = _svd_3_paths(F, True)
+    U, sigma, V, _, _ = _svd_3_paths(F, True)
     check_decomposition(F, U, sigma, V)
-    U0, sigma0, V0, _ = _svd_3_paths(F, False)
+    U0, sigma0, V0, _, _ = _svd_3_paths(F, False)
     check_decomposition(F, U0, sigma0, V0)
     scale = np.abs(sigma0[:, :1])
     np.testing.assert_allclose(sigma, sigma0, rtol=1e-12, atol=1e-15 * scale.max())
@@ -265,9 +265,10 @@ def test_warm_start_needs_no_sweep(rng):
     """Separated singular values: the first-order sweep finishes what the cold start's sweeps do."""
     sig = random_sigma(rng, 200, 3, 0.2, 3.0, min_gap=1e-2)
     F = matrices_with_sigma(rng, sig)
-    _, sigma, _, sweeps = _svd_3_paths(F, True)
+    _, sigma, _, sweeps, starts = _svd_3_paths(F, True)
     assert np.all(sweeps == 0), np.bincount(sweeps)
-    _, _, _, cold = _svd_3_paths(F, False)
+    assert np.all(starts == svd_module.START_EIGENVECTORS)
+    _, _, _, cold, _ = _svd_3_paths(F, False)
     assert np.all(cold >= 2), np.bincount(cold)
     np.testing.assert_allclose(sigma, sig, rtol=1e-12)
 
@@ -275,7 +276,7 @@ def test_warm_start_needs_no_sweep(rng):
 def test_warm_start_falls_back_to_sweeps(rng):
     """All three values within 1e-12: the warm start is noise, sweeps finish; both paths occur."""
     F = _ensemble(rng, "near isotropic", 400)
-    U, sigma, V, sweeps = _svd_3_paths(F, True)
+    U, sigma, V, sweeps, _ = _svd_3_paths(F, True)
     assert np.any(sweeps == 0) and np.any(sweeps >= 1), np.bincount(sweeps)
     check_decomposition(F, U, sigma, V)
     np.testing.assert_allclose(sigma, np.linalg.svd(F, compute_uv=False), rtol=1e-12)
@@ -290,8 +291,9 @@ def test_warm_start_isotropic_keeps_identity(rng, c):
     """
     R = random_rotations(rng, 20, 3)
     F = c * R
-    U, sigma, V, sweeps = _svd_3_paths(F, True)
+    U, sigma, V, sweeps, starts = _svd_3_paths(F, True)
     assert np.all(sweeps == 0)
+    assert np.all(starts == svd_module.START_IDENTITY)
     np.testing.assert_allclose(np.sort(np.abs(V), axis=2)[:, :, :2], 0.0, atol=1e-15)
     np.testing.assert_allclose(np.abs(sigma), abs(c), rtol=1e-14)
     check_decomposition(F, U, sigma, V)
@@ -332,6 +334,33 @@ def test_warm_start_eigenvectors(rng, values, tol, ordered):
     _assert_eigenvectors(F, V, tol, ordered)
     np.testing.assert_allclose(B, F @ V, atol=1e-14 * np.abs(F).max())
     # Accurate enough that the first-order sweep finishes it.
-    _, sigma, _, sweeps = _svd_3_paths(F, True)
+    _, sigma, _, sweeps, starts = _svd_3_paths(F, True)
     assert np.all(sweeps == 0), np.bincount(sweeps)
+    close = svd_module.START_CLOSE_PAIR
+    assert np.all(starts == (svd_module.START_EIGENVECTORS if ordered else close))
     np.testing.assert_allclose(sigma, np.tile(expected_sigma(np.array(values)), (n, 1)), rtol=1e-12)
+
+
+@pytest.mark.parametrize("pair", [(0, 1), (0, 2), (1, 2), None])
+def test_warm_start_one_coupled_pair(rng, pair):
+    """Columns orthogonal but for one pair (or none): one plane rotation, no eigenvectors.
+
+    V is then a rotation in that pair's plane (the other column of V an axis, exactly).
+    """
+    n = 40
+    F = np.zeros((n, 3, 3))
+    F[:, [0, 1, 2], [0, 1, 2]] = rng.uniform(0.5, 2.0, (n, 3))
+    if pair is not None:
+        i, j = pair
+        F[:, i, j] = rng.uniform(-0.3, 0.3, n)
+        F[:, j, i] = rng.uniform(-0.3, 0.3, n)
+    # Rotating the rows keeps the columns' dot products.
+    F = random_rotations(rng, n, 3) @ F
+    U, sigma, V, sweeps, starts = _svd_3_paths(F, True)
+    assert np.all(starts == svd_module.START_ONE_PAIR)
+    assert np.all(sweeps == 0)
+    check_decomposition(F, U, sigma, V)
+    np.testing.assert_allclose(np.abs(sigma), np.linalg.svd(F, compute_uv=False), rtol=1e-12)
+    # The uncoupled axis stays a column of V (up to the sort's order and sign).
+    axis = 2 if pair is None else ({0, 1, 2} - set(pair)).pop()
+    assert np.all(np.max(np.abs(V[:, axis, :]), axis=1) == 1.0)
