@@ -10,10 +10,11 @@ works on ``F`` itself rather than ``FᵀF``, so small singular values keep their
 and it needs no allocation. It starts from an estimate of ``V`` taken in closed form from the
 eigenvectors of ``FᵀF``: that estimate alone would lose the small singular values (``FᵀF`` squares
 the condition number), but as a starting point it leaves the Jacobi iteration rotations of
-round-off size, so one sweep (instead of four from the identity) usually meets the convergence
-test. Where the estimate is poor (clustered or tiny singular values) the iteration simply takes
-more sweeps; its convergence test, not the estimate, decides the accuracy. ``U`` is completed with
-cross products, which makes it a rotation even when ``F`` is rank deficient.
+round-off size, which one first-order sweep (the three rotations applied at once) usually
+finishes, instead of four sweeps from the identity. Where the estimate is poor (nearly isotropic
+F) the ordinary sweeps follow; their convergence test, not the estimate, decides the accuracy.
+``U`` is completed with cross products, which makes it a rotation even when ``F`` is rank
+deficient.
 """
 
 from __future__ import annotations
@@ -39,7 +40,10 @@ _RANK_TOLERANCE = 1e-13
 # identity has no eigenvector information above round-off: the iteration starts from V = I.
 _ISOTROPIC_TOLERANCE = 1e-24
 _SQRT3 = 1.7320508075688772
+# Inside these bounds on |F|² nothing the 3×3 routine forms (up to the fourth power of FᵀF, in the
+# warm start's cross products) overflows or underflows, so F needs no scaling.
 _UNSCALED_MIN = 1e-40
+_UNSCALED_MAX = 1e40
 # Starting points of the 3×3 iteration (returned for the tests): V = I, one plane rotation of an
 # F whose columns are orthogonal but for one pair, eigenvectors with the rotation in the plane of
 # a close pair, eigenvectors of both ends of the spectrum.
@@ -47,7 +51,6 @@ START_IDENTITY = 0
 START_ONE_PAIR = 1
 START_CLOSE_PAIR = 2
 START_EIGENVECTORS = 3
-_UNSCALED_MAX = 1e40
 # sin θ of the trigonometric formula below which the two eigenvalues nearest each other are too
 # close (gap √3 sin θ times the spread) for the null-vector formula to give the second
 # eigenvector to 1e-11: its error is about (1e-14 + round-off of A over the spread) / sin θ.
@@ -351,9 +354,8 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     w0 = (F[0, 0], F[1, 0], F[2, 0])
     w1 = (F[0, 1], F[1, 1], F[2, 1])
     w2 = (F[0, 2], F[1, 2], F[2, 2])
-    # Within these bounds on |F|² no product the iteration forms (up to the fourth power of FᵀF
-    # in the warm start's cross products) overflows or loses precision to underflow; outside
-    # them (or for a non-finite F) the columns are scaled by the largest entry first.
+    # Outside the unscaled bounds on |F|² (or for a non-finite F) the columns are scaled by the
+    # largest entry first.
     scale = 1.0
     norm2 = _dot(w0, w0) + _dot(w1, w1) + _dot(w2, w2)
     if not _UNSCALED_MIN < norm2 < _UNSCALED_MAX:
