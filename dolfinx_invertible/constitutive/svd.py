@@ -5,10 +5,16 @@ singular value of smallest magnitude carries the sign (the "invertible finite el
 convention of Irving et al. 2004), so at most one entry of ``sigma`` is negative and
 ``|sigma|`` is sorted in decreasing order.
 
-The decomposition is a one-sided (Hestenes) Jacobi iteration on the columns of ``F``: it works
-on ``F`` itself rather than ``FᵀF``, so small singular values keep their relative accuracy, and
-it needs no allocation. ``U`` is completed with cross products, which makes it a rotation even
-when ``F`` is rank deficient.
+The 3×3 decomposition is a one-sided (Hestenes) Jacobi iteration on the columns of ``F``: it
+works on ``F`` itself rather than ``FᵀF``, so small singular values keep their relative accuracy,
+and it needs no allocation. It starts from an estimate of ``V`` taken in closed form from the
+eigenvectors of ``FᵀF``: that estimate alone would lose the small singular values (``FᵀF`` squares
+the condition number), but as a starting point it leaves the Jacobi iteration rotations of
+round-off size, which one first-order sweep (the three rotations applied at once) usually
+finishes, instead of four sweeps from the identity. Where the estimate is poor (nearly isotropic
+F) the ordinary sweeps follow; their convergence test, not the estimate, decides the accuracy.
+``U`` is completed with cross products, which makes it a rotation even when ``F`` is rank
+deficient.
 """
 
 from __future__ import annotations
@@ -25,8 +31,30 @@ _MAX_SWEEPS = 12
 _SMALL_ANGLE = 5e-5
 # A sweep whose rotations all have |tan θ| below this leaves cosines of round-off size.
 _CONVERGED_TANGENT = 1e-8
+# Below this every |tan θ| of a sweep, the three rotations may be applied at once to first order:
+# what that neglects (products of two tangents, 1 − cos θ) is below 1e-18, relative to each column.
+_FIRST_ORDER_TANGENT = 1e-9
 # A column this much shorter than the longest carries no direction information.
 _RANK_TOLERANCE = 1e-13
+# FᵀF closer than this (spread of eigenvalues over their mean, squared) to a multiple of the
+# identity has no eigenvector information above round-off: the iteration starts from V = I.
+_ISOTROPIC_TOLERANCE = 1e-24
+_SQRT3 = 1.7320508075688772
+# Inside these bounds on |F|² nothing the 3×3 routine forms (up to the fourth power of FᵀF, in the
+# warm start's cross products) overflows or underflows, so F needs no scaling.
+_UNSCALED_MIN = 1e-40
+_UNSCALED_MAX = 1e40
+# Starting points of the 3×3 iteration (returned for the tests): V = I, one plane rotation of an
+# F whose columns are orthogonal but for one pair, eigenvectors with the rotation in the plane of
+# a close pair, eigenvectors of both ends of the spectrum.
+START_IDENTITY = 0
+START_ONE_PAIR = 1
+START_CLOSE_PAIR = 2
+START_EIGENVECTORS = 3
+# sin θ of the trigonometric formula below which the two eigenvalues nearest each other are too
+# close (gap √3 sin θ times the spread) for the null-vector formula to give the second
+# eigenvector to 1e-11: its error is about (1e-14 + round-off of A over the spread) / sin θ.
+_SPLIT_SINE = 1e-3
 
 
 @numba.njit(cache=True)
@@ -84,39 +112,286 @@ def _jacobi_pair(wp, wq, vp, vq):
 
 
 @numba.njit(cache=True)
+def _cross(x, y):
+    return (x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0])
+
+
+@numba.njit(cache=True)
+def _times(w0, w1, w2, v):
+    """Return the matrix with columns w0, w1, w2 times the vector v."""
+    return (
+        w0[0] * v[0] + w1[0] * v[1] + w2[0] * v[2],
+        w0[1] * v[0] + w1[1] * v[1] + w2[1] * v[2],
+        w0[2] * v[0] + w1[2] * v[1] + w2[2] * v[2],
+    )
+
+
+@numba.njit(cache=True)
+def _largest_cubic_root(r):
+    """Largest root c of 4c³ − 3c = r for 0 ≤ r ≤ 1, i.e. cos(arccos(r)/3), in [√3/2, 1].
+
+    The function is analytic on (−1, 1] (its branch point is r = −1), so a degree-6 Chebyshev
+    interpolant on [0, 1] is within 9e-8 of it; one Newton step on the cubic, whose derivative
+    12c² − 3 stays in [6, 9], takes that to 1.4e-14. This replaces arccos, cos and sin (and their
+    latency) in the trigonometric formula for the eigenvalues of a symmetric 3×3 matrix.
+    """
+    c = 0.8660254934184151 + r * (
+        0.16665781361554563
+        + r
+        * (
+            -0.04796516703978661
+            + r
+            * (
+                0.02373457681002681
+                + r
+                * (-0.012443532696727697 + r * (0.004995539940645294 - r * 0.0010047751159650683))
+            )
+        )
+    )
+    return c - (4.0 * c * c * c - 3.0 * c - r) / (12.0 * c * c - 3.0)
+
+
+@numba.njit(cache=True)
+def _eigenvector(a00, a11, a22, a01, a02, a12, lam):
+    """Return a (non-unit) null vector of A − λI and its squared length.
+
+    The longest of the cross products of two rows: for a simple eigenvalue λ the rows span the
+    plane orthogonal to the eigenvector, and the longest product is the best conditioned.
+    """
+    r0 = (a00 - lam, a01, a02)
+    r1 = (a01, a11 - lam, a12)
+    r2 = (a02, a12, a22 - lam)
+    c01 = _cross(r0, r1)
+    c02 = _cross(r0, r2)
+    c12 = _cross(r1, r2)
+    n01 = _dot(c01, c01)
+    n02 = _dot(c02, c02)
+    n12 = _dot(c12, c12)
+    if n01 >= n02 and n01 >= n12:
+        return c01, n01
+    if n02 >= n12:
+        return c02, n02
+    return c12, n12
+
+
+@numba.njit(cache=True)
+def _warm_start(w0, w1, w2):
+    """Return the Jacobi starting point (F V, V) column by column, V a rotation, and its code.
+
+    When F's columns are orthogonal but for at most one pair, V is the exact rotation of that
+    pair. Otherwise V holds eigenvectors of A = FᵀF, eigenvalues from the trigonometric formula.
+    First x, the eigenvector of the eigenvalue farthest from the other two, as the null vector of
+    A − λI. Then, when the other two are well apart (sin θ ≥ `_SPLIT_SINE`, below), y, the
+    eigenvector of the other end of the spectrum, the same way and side by side with x,
+    orthogonalised against it; otherwise (a near double eigenvalue, or a spread so wide that the
+    small end is round-off of the large one) the exact Jacobi rotation in the plane orthogonal to
+    x, which needs no gap. The cross product completes V. The error of the result is about
+    round-off over the relative eigenvalue gaps, which the sweeps that follow remove. V = I
+    covers an A with no eigenvector information (a multiple of the identity to round-off) and a
+    non-finite A.
+    """
+    a00 = _dot(w0, w0)
+    a11 = _dot(w1, w1)
+    a22 = _dot(w2, w2)
+    a01 = _dot(w0, w1)
+    a02 = _dot(w0, w2)
+    a12 = _dot(w1, w2)
+    # A = q I + p B with tr B = 0 and tr B² = 6: eigenvalues q + 2p cos θ_k, cos 3θ_k = det(B)/2.
+    q = (a00 + a11 + a22) * (1.0 / 3.0)
+    b00 = a00 - q
+    b11 = a11 - q
+    b22 = a22 - q
+    p2 = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) * (
+        1.0 / 6.0
+    )
+    identity = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+    if not p2 > _ISOTROPIC_TOLERANCE * q * q:
+        return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY
+    # Columns already orthogonal (diagonal or axis-aligned F, often a benchmark's or a test's)
+    # but for at most one pair: one exact rotation of that pair is cheaper than eigenvectors,
+    # and it leaves the others orthogonal (both new columns stay in the pair's plane).
+    tolerance = _ORTHOGONALITY_TOLERANCE**2
+    coupled01 = not a01 * a01 <= tolerance * (a00 * a11)
+    coupled02 = not a02 * a02 <= tolerance * (a00 * a22)
+    coupled12 = not a12 * a12 <= tolerance * (a11 * a22)
+    if int(coupled01) + int(coupled02) + int(coupled12) <= 1:
+        v0, v1, v2 = identity
+        if coupled01:
+            w0, w1, v0, v1, _ = _jacobi_pair(w0, w1, v0, v1)
+        elif coupled02:
+            w0, w2, v0, v2, _ = _jacobi_pair(w0, w2, v0, v2)
+        elif coupled12:
+            w1, w2, v1, v2, _ = _jacobi_pair(w1, w2, v1, v2)
+        return w0, w1, w2, v0, v1, v2, START_ONE_PAIR
+    p = np.sqrt(p2)
+    det_pb = (
+        b00 * (b11 * b22 - a12 * a12)
+        - a01 * (a01 * b22 - a12 * a02)
+        + a02 * (a01 * a12 - b11 * a02)
+    )
+    r = 0.5 * det_pb / (p2 * p)
+    # With r = cos 3θ ≥ 0 and c = cos θ the largest root, the roots are c (the largest
+    # eigenvalue) and −(c ± √3 sin θ)/2, the smallest with +; for r < 0 all three negate. sin θ
+    # from sin 3θ = sin θ (4c² − 1), with 1 − r² in factored form.
+    sign = np.copysign(1.0, r)
+    ar = min(1.0, abs(r))
+    c = _largest_cubic_root(ar)
+    s = np.sqrt((1.0 - ar) * (1.0 + ar)) / (4.0 * c * c - 1.0)
+    x, nx = _eigenvector(a00, a11, a22, a01, a02, a12, q + sign * (2.0 * p) * c)
+    if not nx > 0.0:
+        return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY
+    if s < _SPLIT_SINE:
+        inverse = 1.0 / np.sqrt(nx)
+        x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
+        y = _unit_perpendicular(x[0], x[1], x[2])
+        z = _cross(x, y)
+        fy, fz, y, z, _ = _jacobi_pair(_times(w0, w1, w2, y), _times(w0, w1, w2, z), y, z)
+        # (x, y, z) and its cyclic shift are rotations; x goes where the sort would put it.
+        if sign > 0.0:
+            return _times(w0, w1, w2, x), fy, fz, x, y, z, START_CLOSE_PAIR
+        return fy, fz, _times(w0, w1, w2, x), y, z, x, START_CLOSE_PAIR
+    y, ny = _eigenvector(a00, a11, a22, a01, a02, a12, q - sign * p * (c + _SQRT3 * s))
+    inverse = 1.0 / np.sqrt(nx)
+    # y minus its component along x, using x before normalisation (no wait for the square root).
+    projection = _dot(x, y) / nx
+    y = (y[0] - projection * x[0], y[1] - projection * x[1], y[2] - projection * x[2])
+    x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
+    length2 = _dot(y, y)
+    if length2 > _RANK_TOLERANCE**2 * ny:
+        inverse = 1.0 / np.sqrt(length2)
+        y = (y[0] * inverse, y[1] * inverse, y[2] * inverse)
+    else:
+        y = _unit_perpendicular(x[0], x[1], x[2])
+    # Columns by decreasing eigenvalue: (x, y × x, y) for r ≥ 0, (y, x × y, x) for r < 0; both
+    # are cyclic shifts of (a, b, a × b), rotations.
+    if sign > 0.0:
+        z = _cross(y, x)
+        fx, fz, fy = _times(w0, w1, w2, x), _times(w0, w1, w2, z), _times(w0, w1, w2, y)
+        return fx, fz, fy, x, z, y, START_EIGENVECTORS
+    z = _cross(x, y)
+    fy, fz, fx = _times(w0, w1, w2, y), _times(w0, w1, w2, z), _times(w0, w1, w2, x)
+    return fy, fz, fx, y, z, x, START_EIGENVECTORS
+
+
+@numba.njit(cache=True)
+def _first_order_tangent(alpha, beta, gamma):
+    """Return tan θ of the rotation that makes a pair orthogonal, or inf if it is not small.
+
+    Same rotation as `_jacobi_pair` (α, β the squared lengths, γ the dot product), to first order
+    in τ = γ/(β − α); inf when |τ| ≥ `_FIRST_ORDER_TANGENT`, including β = α with γ ≠ 0.
+    """
+    if gamma * gamma <= _ORTHOGONALITY_TOLERANCE**2 * (alpha * beta):
+        return 0.0
+    difference = beta - alpha
+    if abs(gamma) < _FIRST_ORDER_TANGENT * abs(difference):
+        return gamma / difference
+    return np.inf
+
+
+@numba.njit(cache=True)
+def _first_order_sweep(w0, w1, w2, v0, v1, v2):
+    """Orthogonalise nearly orthogonal columns with the three rotations of a sweep at once.
+
+    Returns whether every rotation was small enough (`_FIRST_ORDER_TANGENT`) and the new columns
+    (W and V times I + T, T the antisymmetric matrix of the tangents). Unlike a sweep, the three
+    tangents are independent, so their divisions do not wait for each other. On False the columns
+    are returned unchanged.
+    """
+    a0 = _dot(w0, w0)
+    a1 = _dot(w1, w1)
+    a2 = _dot(w2, w2)
+    t01 = _first_order_tangent(a0, a1, _dot(w0, w1))
+    t02 = _first_order_tangent(a0, a2, _dot(w0, w2))
+    t12 = _first_order_tangent(a1, a2, _dot(w1, w2))
+    if not max(abs(t01), abs(t02), abs(t12)) < _FIRST_ORDER_TANGENT:
+        return False, w0, w1, w2, v0, v1, v2
+    x0 = (
+        w0[0] - t01 * w1[0] - t02 * w2[0],
+        w0[1] - t01 * w1[1] - t02 * w2[1],
+        w0[2] - t01 * w1[2] - t02 * w2[2],
+    )
+    x1 = (
+        w1[0] + t01 * w0[0] - t12 * w2[0],
+        w1[1] + t01 * w0[1] - t12 * w2[1],
+        w1[2] + t01 * w0[2] - t12 * w2[2],
+    )
+    x2 = (
+        w2[0] + t02 * w0[0] + t12 * w1[0],
+        w2[1] + t02 * w0[1] + t12 * w1[1],
+        w2[2] + t02 * w0[2] + t12 * w1[2],
+    )
+    y0 = (
+        v0[0] - t01 * v1[0] - t02 * v2[0],
+        v0[1] - t01 * v1[1] - t02 * v2[1],
+        v0[2] - t01 * v1[2] - t02 * v2[2],
+    )
+    y1 = (
+        v1[0] + t01 * v0[0] - t12 * v2[0],
+        v1[1] + t01 * v0[1] - t12 * v2[1],
+        v1[2] + t01 * v0[2] - t12 * v2[2],
+    )
+    y2 = (
+        v2[0] + t02 * v0[0] + t12 * v1[0],
+        v2[1] + t02 * v0[1] + t12 * v1[1],
+        v2[2] + t02 * v0[2] + t12 * v1[2],
+    )
+    return True, x0, x1, x2, y0, y1, y2
+
+
+@numba.njit(cache=True)
 def _negated(x):
     return (-x[0], -x[1], -x[2])
 
 
 @numba.njit(cache=True)
-def _polar_svd_3(F, U, sigma, V):
-    scale = 0.0
-    for i in range(3):
-        for j in range(3):
-            scale = max(scale, abs(F[i, j]))
-    if scale == 0.0:
+def _polar_svd_3_sweeps(F, U, sigma, V, warm):
+    """Compute the 3×3 polar SVD; return the number of Jacobi sweeps and the starting point.
+
+    ``warm`` chooses the closed-form starting point (else V = I), so that the tests can compare
+    both starts and see which path a matrix takes. 0 sweeps: the starting point needed only the
+    first-order sweep. The starting point is one of the ``START_*`` codes.
+    """
+    w0 = (F[0, 0], F[1, 0], F[2, 0])
+    w1 = (F[0, 1], F[1, 1], F[2, 1])
+    w2 = (F[0, 2], F[1, 2], F[2, 2])
+    # Outside the unscaled bounds on |F|² (or for a non-finite F) the columns are scaled by the
+    # largest entry first.
+    scale = 1.0
+    norm2 = _dot(w0, w0) + _dot(w1, w1) + _dot(w2, w2)
+    if not _UNSCALED_MIN < norm2 < _UNSCALED_MAX:
+        scale = 0.0
         for i in range(3):
-            sigma[i] = 0.0
             for j in range(3):
-                U[i, j] = 1.0 if i == j else 0.0
-                V[i, j] = U[i, j]
-        return
-    # Scaling by the largest entry keeps squared column norms far from overflow and underflow.
-    inverse_scale = 1.0 / scale
-    w0 = (F[0, 0] * inverse_scale, F[1, 0] * inverse_scale, F[2, 0] * inverse_scale)
-    w1 = (F[0, 1] * inverse_scale, F[1, 1] * inverse_scale, F[2, 1] * inverse_scale)
-    w2 = (F[0, 2] * inverse_scale, F[1, 2] * inverse_scale, F[2, 2] * inverse_scale)
-    v0 = (1.0, 0.0, 0.0)
-    v1 = (0.0, 1.0, 0.0)
-    v2 = (0.0, 0.0, 1.0)
-    for _ in range(_MAX_SWEEPS):
+                scale = max(scale, abs(F[i, j]))
+        if scale == 0.0:
+            for i in range(3):
+                sigma[i] = 0.0
+                for j in range(3):
+                    U[i, j] = 1.0 if i == j else 0.0
+                    V[i, j] = U[i, j]
+            return 0, START_IDENTITY
+        inverse_scale = 1.0 / scale
+        w0 = (w0[0] * inverse_scale, w0[1] * inverse_scale, w0[2] * inverse_scale)
+        w1 = (w1[0] * inverse_scale, w1[1] * inverse_scale, w1[2] * inverse_scale)
+        w2 = (w2[0] * inverse_scale, w2[1] * inverse_scale, w2[2] * inverse_scale)
+    if warm:
+        w0, w1, w2, v0, v1, v2, start = _warm_start(w0, w1, w2)
+        done, w0, w1, w2, v0, v1, v2 = _first_order_sweep(w0, w1, w2, v0, v1, v2)
+    else:
+        v0 = (1.0, 0.0, 0.0)
+        v1 = (0.0, 1.0, 0.0)
+        v2 = (0.0, 0.0, 1.0)
+        done = False
+        start = START_IDENTITY
+    sweeps = 0
+    while not done and sweeps < _MAX_SWEEPS:
+        sweeps += 1
         w0, w1, v0, v1, t01 = _jacobi_pair(w0, w1, v0, v1)
         w0, w2, v0, v2, t02 = _jacobi_pair(w0, w2, v0, v2)
         w1, w2, v1, v2, t12 = _jacobi_pair(w1, w2, v1, v2)
         # Each rotation zeroes its pair's cosine; the later ones of a sweep bring back at most
         # the product of two tangents: below 1e-8 each, the sweep has converged to round-off.
-        if max(t01, t02, t12) < _CONVERGED_TANGENT:
-            break
+        done = max(t01, t02, t12) < _CONVERGED_TANGENT
 
     # Sort columns by decreasing length; each swap negates one column so det V stays +1.
     n0, n1, n2 = _dot(w0, w0), _dot(w1, w1), _dot(w2, w2)
@@ -127,24 +402,19 @@ def _polar_svd_3(F, U, sigma, V):
     if n2 > n1:
         w1, w2, v1, v2, n1, n2 = w2, _negated(w1), v2, _negated(v1), n2, n1
 
-    # W = F V / scale has orthogonal columns sigma_i u_i; build U as a rotation from them.
+    # W = F V / scale has orthogonal columns sigma_i u_i; build U as a rotation from them. The
+    # iteration stops only with every cosine between columns at round-off (relative to both
+    # lengths, however short), so u0 and u1 are the normalised columns, computed side by side.
     first = np.sqrt(n0)
+    second = np.sqrt(n1)
     inverse_first = 1.0 / first
     u0 = (w0[0] * inverse_first, w0[1] * inverse_first, w0[2] * inverse_first)
-    # Re-orthogonalise the second column against the first before normalising it.
-    projection = _dot(w1, u0)
-    x = (w1[0] - projection * u0[0], w1[1] - projection * u0[1], w1[2] - projection * u0[2])
-    second = np.sqrt(_dot(x, x))
     if second > _RANK_TOLERANCE * first:
         inverse_second = 1.0 / second
-        u1 = (x[0] * inverse_second, x[1] * inverse_second, x[2] * inverse_second)
+        u1 = (w1[0] * inverse_second, w1[1] * inverse_second, w1[2] * inverse_second)
     else:
         u1 = _unit_perpendicular(u0[0], u0[1], u0[2])
-    u2 = (
-        u0[1] * u1[2] - u0[2] * u1[1],
-        u0[2] * u1[0] - u0[0] * u1[2],
-        u0[0] * u1[1] - u0[1] * u1[0],
-    )
+    u2 = _cross(u0, u1)
     # Projecting onto u2 gives the last singular value its sign: negative iff det F < 0.
     third = _dot(w2, u2)
     for i in range(3):
@@ -157,6 +427,12 @@ def _polar_svd_3(F, U, sigma, V):
     sigma[0] = first * scale
     sigma[1] = second * scale
     sigma[2] = third * scale
+    return sweeps, start
+
+
+@numba.njit(cache=True)
+def _polar_svd_3(F, U, sigma, V):
+    _polar_svd_3_sweeps(F, U, sigma, V, True)
 
 
 @numba.njit(cache=True)
