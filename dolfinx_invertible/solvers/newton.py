@@ -94,7 +94,7 @@ class EnergyMinimizer:
        negative pivot (``result.blended_iterations`` counts these): the projection drops all of
        the cells' negative curvature, even where the mass or the rest of the body outweighs
        most of it, and Newton on K₊ then converges only linearly (out of a collapsed state at
-       λ/μ ≥ 49: 50 to 90 iterations, against 16 with the blend). It is a last resort, not
+       λ/μ = 49: 86 iterations, against 16 with the blend). It is a last resort, not
        the default: a step that the blend brings home in many iterations has often travelled
        to another minimum of the step's energy (an inverted one, in a collapse) where cutting
        the step would have kept the motion resolved. The steppers escalate to it when the cuts
