@@ -305,37 +305,31 @@ def _first_order_sweep(w0, w1, w2, v0, v1, v2):
     t12 = _first_order_tangent(a1, a2, _dot(w1, w2))
     if not max(abs(t01), abs(t02), abs(t12)) < _FIRST_ORDER_TANGENT:
         return False, w0, w1, w2, v0, v1, v2
-    x0 = (
-        w0[0] - t01 * w1[0] - t02 * w2[0],
-        w0[1] - t01 * w1[1] - t02 * w2[1],
-        w0[2] - t01 * w1[2] - t02 * w2[2],
-    )
-    x1 = (
-        w1[0] + t01 * w0[0] - t12 * w2[0],
-        w1[1] + t01 * w0[1] - t12 * w2[1],
-        w1[2] + t01 * w0[2] - t12 * w2[2],
-    )
-    x2 = (
-        w2[0] + t02 * w0[0] + t12 * w1[0],
-        w2[1] + t02 * w0[1] + t12 * w1[1],
-        w2[2] + t02 * w0[2] + t12 * w1[2],
-    )
-    y0 = (
-        v0[0] - t01 * v1[0] - t02 * v2[0],
-        v0[1] - t01 * v1[1] - t02 * v2[1],
-        v0[2] - t01 * v1[2] - t02 * v2[2],
-    )
-    y1 = (
-        v1[0] + t01 * v0[0] - t12 * v2[0],
-        v1[1] + t01 * v0[1] - t12 * v2[1],
-        v1[2] + t01 * v0[2] - t12 * v2[2],
-    )
-    y2 = (
-        v2[0] + t02 * v0[0] + t12 * v1[0],
-        v2[1] + t02 * v0[1] + t12 * v1[1],
-        v2[2] + t02 * v0[2] + t12 * v1[2],
-    )
+    x0, x1, x2 = _times_identity_plus(w0, w1, w2, t01, t02, t12)
+    y0, y1, y2 = _times_identity_plus(v0, v1, v2, t01, t02, t12)
     return True, x0, x1, x2, y0, y1, y2
+
+
+@numba.njit(cache=True)
+def _times_identity_plus(c0, c1, c2, t01, t02, t12):
+    """Columns of [c0 c1 c2] (I + T), T antisymmetric with T₀₁ = t01, T₀₂ = t02, T₁₂ = t12."""
+    return (
+        (
+            c0[0] - t01 * c1[0] - t02 * c2[0],
+            c0[1] - t01 * c1[1] - t02 * c2[1],
+            c0[2] - t01 * c1[2] - t02 * c2[2],
+        ),
+        (
+            c1[0] + t01 * c0[0] - t12 * c2[0],
+            c1[1] + t01 * c0[1] - t12 * c2[1],
+            c1[2] + t01 * c0[2] - t12 * c2[2],
+        ),
+        (
+            c2[0] + t02 * c0[0] + t12 * c1[0],
+            c2[1] + t02 * c0[1] + t12 * c1[1],
+            c2[2] + t02 * c0[2] + t12 * c1[2],
+        ),
+    )
 
 
 @numba.njit(cache=True)
