@@ -11,16 +11,17 @@ directly from F, and its derivative
     dP/dF = 2 Ψ_{I₁} 𝕀 + 4 Ψ_{I₂} ∂(F C)/∂F + Ψ_J ∂cof F/∂F + Σ_ab Ψ_ab vₐ ⊗ v_b,
     v = (2F, 4FC, cof F) = the derivatives of (I₁, I₂, J),
 
-whose SPD projection is the identity whenever it is already positive definite (checked by an
-LDLᵀ factorisation). Near rest it often is not, but only in its twist modes vec(R K) (R the polar
-rotation, K skew): their stiffnesses (gᵢ + gⱼ)/(σᵢ + σⱼ) are negative under compressive stress
-and zero at P = 0. Those modes span an invariant subspace found without an SVD (R by Newton's
-polar iteration), so the fast path projects that 3×3 block (1×1 in 2D) and accepts the result if
-the rest of the tangent is positive definite, a twist block within round-off of zero counting as
-semidefinite; the outcome is the projected tangent (the tests compare it with the eigenvalue
-clamp of the exact one). Only what still fails takes the SVD. Σ 1/σᵢ² = tr C⁻¹ is itself an
-invariant: ½(I₁² − I₂)/J² in 3D, I₁/J² in 2D. (The paper prints the C1 test as "I₂/J² ≥ ε"; the
-sound test is the one above.)
+whose SPD projection needs no SVD either where its eigenvalues can be decided from σ alone. Those
+are the σ-Hessian's and, for each pair, the stretch and twist stiffnesses 2Ψ₁ ∓ Ψ_J σₖ +
+4Ψ₂(σᵢ² ± σᵢσⱼ + σⱼ²), with σ from the eigenvalues of C in closed form
+(:func:`spectral_projection`). Near rest only the twist stiffnesses can be negative (compressive
+stress; zero at P = 0), and their modes vec(R K) (R the polar rotation by Newton's iteration, K
+skew) span an invariant subspace, so the projection subtracts the negative part of that 3×3 block
+(1×1 in 2D); points whose stretch or Hessian eigenvalues are not clearly positive take the
+SVD.
+
+Σ 1/σᵢ² = tr C⁻¹ is itself an invariant: ½(I₁² − I₂)/J² in 3D, I₁/J² in 2D. (The paper prints
+the C1 test as "I₂/J² ≥ ε"; the sound test is the one above.)
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from dolfinx_invertible.constitutive.models.registry import (
     model_invariant_terms,
     model_uses_second_invariant,
 )
-from dolfinx_invertible.constitutive.tangent import project_symmetric_3
+from dolfinx_invertible.constitutive.symmetric3 import eigenvalues, null_vector
 
 __all__ = [
     "extension_inactive",
@@ -43,6 +44,7 @@ __all__ = [
     "invariant_stress",
     "invariant_tangent",
     "invariants",
+    "spectral_projection",
 ]
 
 
@@ -160,43 +162,18 @@ def _cofactor(F, i, j):
     return F[i1, j1] * F[i2, j2] - F[i1, j2] * F[i2, j1]
 
 
-def _specialised_positive(n: int):
-    """Test a symmetric n×n matrix (read, not written) for positive definiteness by LDLᵀ.
-
-    Every pivot > 0; unpivoted, one division per pivot and no square roots.
-    """
-
-    @numba.njit(cache=True)
-    def positive(C):
-        factor = numba.carray(ws.stack_array(81), (9, 9))  # L below the diagonal
-        pivots = numba.carray(ws.stack_array(9), 9)
-        scaled = numba.carray(ws.stack_array(9), 9)  # row j of L times the pivots
-        for j in range(n):
-            for k in range(j):
-                scaled[k] = factor[j, k] * pivots[k]
-            pivot = C[j, j]
-            for k in range(j):
-                pivot -= factor[j, k] * scaled[k]
-            if not pivot > 0.0:
-                return False
-            inverse = 1.0 / pivot
-            pivots[j] = pivot
-            for i in range(j + 1, n):
-                value = C[i, j]
-                for k in range(j):
-                    value -= factor[i, k] * scaled[k]
-                factor[i, j] = value * inverse
-        return True
-
-    return positive
-
-
-_positive_2d = _specialised_positive(4)
-_positive_3d = _specialised_positive(9)
 _MAX_POLAR_ITERATIONS = 12
-# A twist block whose smallest eigenvalue exceeds this (relative to the largest diagonal entry
-# of the tangent) is positive definite beyond round-off.
-_TWIST_MARGIN = 1e-10
+# The stretch and diagonal-block stiffnesses computed from σ must exceed this, relative to the
+# largest diagonal entry of the tangent, for the test to accept the point: their error is below
+# 1e-11 of it wherever the test is used (see `_CONDITION_FLOOR`), so a point accepted has
+# exactly those eigenvalues positive.
+_DECISION_MARGIN = 1e-9
+# σ comes from the eigenvalues of FᵀF, whose error is a few ulps of the largest one λ₁: the middle
+# one must be at least this fraction of λ₁ for √λ₂ to be good to 1e-12 (the smallest singular
+# value is J/(σ₁σ₂), as accurate as σ₁ and σ₂). More distorted points take the SVD.
+_CONDITION_FLOOR = 1e-2
+#: :func:`spectral_projection`'s code for a point it cannot decide: the SVD path is needed.
+SPECTRAL_NEEDS_SVD = -1
 
 
 @numba.njit(cache=True)
@@ -247,141 +224,233 @@ def _polar_rotation_3d(F, R):
     return False
 
 
-def _specialised_twist_projection(d: int):
-    """Project the twist block of an exact invariant-form tangent, without an SVD.
+@numba.njit(cache=True)
+def _positive_definite_3(a00, a11, a22, a01, a02, a12):
+    """Leading minors of a symmetric 3×3 matrix (given by its six entries) all positive."""
+    if not a00 > 0.0:
+        return False
+    minor = a00 * a11 - a01 * a01
+    if not minor > 0.0:
+        return False
+    determinant = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02)
+    determinant += a02 * (a01 * a12 - a11 * a02)
+    return determinant > 0.0
 
-    For an isotropic energy the twist modes vec(R K) (R the polar rotation of F, K skew) span an
-    invariant subspace of dP/dF, on which the tangent acts as the symmetric m×m matrix
-    M = Tᵀ C T (m = 1 in 2D, 3 in 3D; T holds the orthonormal modes); its eigenvalues are the
-    rotational stiffnesses (gᵢ + gⱼ)/(σᵢ + σⱼ), negative under compression. Clamping them (C += T
-    (M₊ − M) Tᵀ) is the SPD projection restricted to that subspace; if the rest of C is positive
-    semidefinite (the caller checks), the result is the projected tangent itself.
 
-    Returns False when the polar iteration fails, or when M is already positive definite (then
-    the twist modes are not what made C fail the test, and the SVD is needed).
-    """
+def _specialised_spectral_projection(d: int):
+    """:func:`spectral_projection` for one dimension: constant loop bounds unroll."""
     n = d * d
-    m = 1 if d == 2 else 3
 
     @numba.njit(cache=True)
-    def projection(F, C, shifted):
-        R = numba.carray(ws.stack_array(9), (3, 3))
-        modes = numba.carray(ws.stack_array(27), (3, 9))  # the twist modes, one per row
-        image = numba.carray(ws.stack_array(27), (3, 9))  # C applied to each
-        M = numba.carray(ws.stack_array(9), (3, 3))
-        change = numba.carray(ws.stack_array(9), (3, 3))
-        weighted = numba.carray(ws.stack_array(27), (3, 9))
+    def projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C):
+        # σ from the eigenvalues of FᵀF; the smallest, signed, as J over the others.
+        a00 = 0.0
+        a11 = 0.0
+        a22 = 0.0
+        a01 = 0.0
+        a02 = 0.0
+        a12 = 0.0
+        for k in range(d):
+            a00 += F[k, 0] * F[k, 0]
+            a11 += F[k, 1] * F[k, 1]
+            a01 += F[k, 0] * F[k, 1]
+            if d == 3:
+                a22 += F[k, 2] * F[k, 2]
+                a02 += F[k, 0] * F[k, 2]
+                a12 += F[k, 1] * F[k, 2]
+        if d == 3:
+            l1, l2, _ = eigenvalues(a00, a11, a22, a01, a02, a12)
+            if not (l1 > 0.0 and l2 >= _CONDITION_FLOOR * l1 and l1 < np.inf):
+                return SPECTRAL_NEEDS_SVD
+            s1 = np.sqrt(l1)
+            s2 = np.sqrt(l2)
+            s3 = J / (s1 * s2)
+        else:
+            half_difference = 0.5 * (a00 - a11)
+            l1 = 0.5 * (a00 + a11) + np.sqrt(half_difference * half_difference + a01 * a01)
+            if not (l1 > 0.0 and l1 < np.inf):
+                return SPECTRAL_NEEDS_SVD
+            s1 = np.sqrt(l1)
+            s2 = J / s1
+            s3 = 1.0
+        sigma = (s1, s2, s3)
+        shift = 0.0
+        for alpha in range(n):
+            shift = max(shift, C[alpha, alpha])
+        margin = _DECISION_MARGIN * shift
+        # With g = ∇σ Ψ(I₁, I₂, J), the pair (i, j) has the stretch stiffness (gᵢ − gⱼ)/(σᵢ − σⱼ)
+        # = 2Ψ₁ − Ψ_J σₖ + 4Ψ₂(σᵢ² + σᵢσⱼ + σⱼ²) and the twist stiffness (gᵢ + gⱼ)/(σᵢ + σⱼ)
+        # = 2Ψ₁ + Ψ_J σₖ + 4Ψ₂(σᵢ² − σᵢσⱼ + σⱼ²), k the third index (σₖ → 1 in 2D): no
+        # quotient of differences, so no loss when σᵢ ≈ σⱼ.
+        twist = (0.0, 0.0, 0.0)
+        negative_twists = 0
+        pairs = 1 if d == 2 else 3
+        for k in range(pairs):
+            i = (k + 1) % 3 if d == 3 else 0
+            j = (k + 2) % 3 if d == 3 else 1
+            other = sigma[k] if d == 3 else 1.0
+            squares = sigma[i] * sigma[i] + sigma[j] * sigma[j]
+            product = sigma[i] * sigma[j]
+            stretch = 2.0 * d1 - dJ * other + 4.0 * d2 * (squares + product)
+            if not stretch > margin:
+                return SPECTRAL_NEEDS_SVD
+            stiffness = 2.0 * d1 + dJ * other + 4.0 * d2 * (squares - product)
+            if stiffness < 0.0:
+                negative_twists += 1
+            if k == 0:
+                twist = (stiffness, twist[1], twist[2])
+            elif k == 1:
+                twist = (twist[0], stiffness, twist[2])
+            else:
+                twist = (twist[0], twist[1], stiffness)
+        # The diagonal block: the σ-Hessian of Ψ(I₁(σ), I₂(σ), J(σ)), with the invariants'
+        # gradients (2σᵢ, 4σᵢ³, J/σᵢ) and ∂²J/∂σᵢ∂σⱼ = σₖ (1 in 2D).
+        g0 = (2.0 * s1, 2.0 * s2, 2.0 * s3)
+        g1 = (4.0 * s1 * s1 * s1, 4.0 * s2 * s2 * s2, 4.0 * s3 * s3 * s3)
+        g2 = (s2 * s3, s1 * s3, s1 * s2) if d == 3 else (s2, s1, 0.0)
+        h = numba.carray(ws.stack_array(9), (3, 3))
+        for i in range(d):
+            for j in range(i, d):
+                w0 = c11 * g0[j] + c12 * g1[j] + c1J * g2[j]
+                w1 = c12 * g0[j] + c22 * g1[j] + c2J * g2[j]
+                w2 = c1J * g0[j] + c2J * g1[j] + cJJ * g2[j]
+                value = g0[i] * w0 + g1[i] * w1 + g2[i] * w2
+                if i == j:
+                    value += 2.0 * d1 + 12.0 * d2 * sigma[i] * sigma[i] - margin
+                else:
+                    value += dJ * (sigma[3 - i - j] if d == 3 else 1.0)
+                h[i, j] = value
+        if d == 3:
+            positive = _positive_definite_3(h[0, 0], h[1, 1], h[2, 2], h[0, 1], h[0, 2], h[1, 2])
+        else:
+            positive = h[0, 0] > 0.0 and h[0, 0] * h[1, 1] - h[0, 1] * h[0, 1] > 0.0
+        if not positive:
+            return SPECTRAL_NEEDS_SVD
+        if negative_twists == 0:
+            return 0
+        if not J > 0.0:
+            return SPECTRAL_NEEDS_SVD
+        # C −= T M₋ Tᵀ: T holds the orthonormal twist modes vec(R K)/√2 (R the polar rotation,
+        # K skew), on which C acts as M = 2Ψ₁ I + Ψ_J S + 4Ψ₂(tr(S²) I − S² − adj S) in 3D
+        # (S = RᵀF) and as the twist stiffness in 2D; M₋ is its negative part.
+        modes = numba.carray(ws.stack_array(27), (3, 9))  # one mode per row
+        negative = numba.carray(ws.stack_array(9), (3, 3))  # M₋
+        root_half = np.sqrt(0.5)
         if d == 2:
-            # F + cof F is a positive multiple of the polar rotation (det F > 0).
             c = F[0, 0] + F[1, 1]
             s = F[1, 0] - F[0, 1]
             norm = np.sqrt(c * c + s * s)
             if not norm > 0.0:
-                return False
-            c /= norm
-            s /= norm
-            # vec(R K)/√2 with K = [[0, −1], [1, 0]]: R K = [[−s, −c], [c, −s]].
-            root_half = np.sqrt(0.5)
-            modes[0, 0] = -s * root_half
-            modes[0, 1] = -c * root_half
-            modes[0, 2] = c * root_half
-            modes[0, 3] = -s * root_half
+                return SPECTRAL_NEEDS_SVD
+            c *= root_half / norm
+            s *= root_half / norm
+            # R K with K = [[0, −1], [1, 0]]: [[−s, −c], [c, −s]] (F + cof F ∝ R).
+            modes[0, 0] = -s
+            modes[0, 1] = -c
+            modes[0, 2] = c
+            modes[0, 3] = -s
+            negative[0, 0] = twist[0]
         else:
+            R = numba.carray(ws.stack_array(9), (3, 3))
             if not _polar_rotation_3d(F, R):
-                return False
-            root_half = np.sqrt(0.5)
-            # K_k = the skew matrix of axis k: (R K_k)_ij = Σ_l R_il (K_k)_lj.
+                return SPECTRAL_NEEDS_SVD
+            # K_k = [e_k]×: (R K_k)_ij = R_{i,k1} δ_{j,k2} − R_{i,k2} δ_{j,k1}, up to the sign
+            # convention, which M₋ does not see.
             for k in range(3):
                 k1 = (k + 1) % 3
                 k2 = (k + 2) % 3
                 for i in range(3):
+                    modes[k, i * 3 + k] = 0.0
+                    modes[k, i * 3 + k2] = -R[i, k1] * root_half
+                    modes[k, i * 3 + k1] = R[i, k2] * root_half
+            S = numba.carray(ws.stack_array(9), (3, 3))
+            for i in range(3):
+                for j in range(i, 3):
+                    total = 0.0
+                    for k in range(3):
+                        total += 0.5 * (R[k, i] * F[k, j] + R[k, j] * F[k, i])
+                    S[i, j] = total
+                    S[j, i] = total
+            M = numba.carray(ws.stack_array(9), (3, 3))
+            squares = 0.0
+            for i in range(3):
+                for j in range(3):
+                    squares += S[i, j] * S[i, j]
+            for i in range(3):
+                i1 = (i + 1) % 3
+                i2 = (i + 2) % 3
+                for j in range(3):
+                    j1 = (j + 1) % 3
+                    j2 = (j + 2) % 3
+                    value = dJ * S[i, j]
+                    if d2 != 0.0:
+                        square = S[i, 0] * S[0, j] + S[i, 1] * S[1, j] + S[i, 2] * S[2, j]
+                        adjugate = S[j1, i1] * S[j2, i2] - S[j1, i2] * S[j2, i1]
+                        value -= 4.0 * d2 * (square + adjugate)
+                    if i == j:
+                        value += 2.0 * d1 + (4.0 * d2 * squares if d2 != 0.0 else 0.0)
+                    M[i, j] = value
+            m00, m11, m22, m01, m02, m12 = M[0, 0], M[1, 1], M[2, 2], M[0, 1], M[0, 2], M[1, 2]
+            if negative_twists == 3:
+                for i in range(3):
                     for j in range(3):
-                        modes[k, i * 3 + j] = 0.0
-                    # (K_k)_{k1,k2} = −1, (K_k)_{k2,k1} = +1
-                    modes[k, i * 3 + k2] -= R[i, k1] * root_half
-                    modes[k, i * 3 + k1] += R[i, k2] * root_half
-        for k in range(m):
-            for alpha in range(n):
-                total = 0.0
-                for beta in range(n):
-                    total += C[alpha, beta] * modes[k, beta]
-                image[k, alpha] = total
-        for k in range(m):
-            for l in range(m):
-                total = 0.0
-                for alpha in range(n):
-                    total += modes[k, alpha] * image[l, alpha]
-                M[k, l] = total
-        shift = 0.0
-        for alpha in range(n):
-            shift = max(shift, C[alpha, alpha])
-        # Clearly positive definite twist block (beyond round-off): the twist modes are not what
-        # made C fail, so projecting them cannot help.
-        margin = _TWIST_MARGIN * shift
-        if m == 1:
-            if M[0, 0] > margin:
-                return False
-            change[0, 0] = max(M[0, 0], 0.0) - M[0, 0]
-        else:
-            for k in range(3):
-                for l in range(k + 1, 3):
-                    average = 0.5 * (M[k, l] + M[l, k])
-                    M[k, l] = average
-                    M[l, k] = average
-            for k in range(3):
-                M[k, k] -= margin
-            clearly_positive = _positive_definite_3(M)
-            for k in range(3):
-                M[k, k] += margin
-            if clearly_positive:
-                return False
-            for k in range(3):
-                for l in range(3):
-                    change[k, l] = -M[k, l]
-            project_symmetric_3(M)
-            for k in range(3):
-                for l in range(3):
-                    change[k, l] += M[k, l]
+                        negative[i, j] = M[i, j]
+            else:
+                # The one stiffness alone on its side of zero is at least its own magnitude away
+                # from the other two, so its eigenvector's error times it stays at round-off.
+                if negative_twists == 1:
+                    alone = min(twist[0], twist[1], twist[2])
+                else:
+                    alone = max(twist[0], twist[1], twist[2])
+                v, length2 = null_vector(m00, m11, m22, m01, m02, m12, alone)
+                # No null vector: the lone stiffness is a double one, hence round-off zero.
+                weight = alone / length2 if length2 > 0.0 else 0.0
+                for i in range(3):
+                    for j in range(3):
+                        lone = weight * v[i] * v[j]
+                        negative[i, j] = lone if negative_twists == 1 else M[i, j] - lone
+        m = 1 if d == 2 else 3
+        weighted = numba.carray(ws.stack_array(27), (3, 9))
         for k in range(m):
             for beta in range(n):
                 total = 0.0
                 for l in range(m):
-                    total += change[k, l] * modes[l, beta]
+                    total += negative[k, l] * modes[l, beta]
                 weighted[k, beta] = total
-        # C += T (M₊ − M) Tᵀ; ``shifted`` = that + s T Tᵀ (s the largest diagonal entry of C), which
-        # is positive definite exactly when the rest of C is: a plain LDLᵀ test decides.
         for alpha in range(n):
             for beta in range(n):
                 total = 0.0
-                projector = 0.0
                 for k in range(m):
                     total += modes[k, alpha] * weighted[k, beta]
-                    projector += modes[k, alpha] * modes[k, beta]
-                C[alpha, beta] += total
-                shifted[alpha, beta] = C[alpha, beta] + shift * projector
-        return True
+                C[alpha, beta] -= total
+        return negative_twists
 
     return projection
 
 
+_spectral_projection_2d = _specialised_spectral_projection(2)
+_spectral_projection_3d = _specialised_spectral_projection(3)
+
+
 @numba.njit(cache=True)
-def _positive_definite_3(A):
-    """Leading minors of a symmetric 3×3 matrix all positive."""
-    if not A[0, 0] > 0.0:
-        return False
-    minor = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-    if not minor > 0.0:
-        return False
-    determinant = (
-        A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
-        - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
-        + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])
-    )
-    return determinant > 0.0
+def spectral_projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C):
+    """Project the exact invariant-form tangent ``C`` onto the PSD cone in place, without an SVD.
 
-
-_twist_projection_2d = _specialised_twist_projection(2)
-_twist_projection_3d = _specialised_twist_projection(3)
+    The eigenvalues of the tangent of an isotropic energy are the σ-Hessian's, the pairs'
+    stretch and their twist stiffnesses, all written here in the invariant derivatives
+    (Ψ₁, Ψ₂, Ψ_J and the curvature) and σ, which comes from the eigenvalues of FᵀF in closed
+    form. Where the stretch and Hessian eigenvalues are clearly positive (above
+    ``_DECISION_MARGIN`` of the largest diagonal entry, beyond their estimation error), only the
+    twist stiffnesses can be negative, and the projection is C minus its negative part on the
+    twist modes vec(R K) (an invariant subspace; R by the polar iteration). Returns the number of
+    negative twist stiffnesses clamped (0: ``C`` is already positive semidefinite and left
+    alone), or :data:`SPECTRAL_NEEDS_SVD` (``C`` untouched) for a point it does not decide: a
+    stretch or Hessian eigenvalue not clearly positive, σ too spread to be estimated this way, a
+    twist clamp at J ≤ 0, or a polar iteration that does not converge.
+    """
+    if F.shape[0] == 3:
+        return _spectral_projection_3d(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
+    return _spectral_projection_2d(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
 
 
 @numba.njit(cache=True)
@@ -389,8 +458,8 @@ def invariant_tangent(F, I1, I2, J, model_id, extension_id, positive_only, param
     """(done, Ψ, region) with P and dP/dF written when ``done``.
 
     False when the SVD path is needed: the extension may be active, the model is not written in
-    invariants, or the projection was asked for and the tangent is neither positive definite
-    nor made positive semidefinite by projecting its twist block.
+    invariants, or the projection was asked for and :func:`spectral_projection` cannot decide
+    the point.
     """
     if F.shape[0] == 3:
         return _invariant_tangent_3d(
@@ -483,21 +552,11 @@ def _specialised_invariant_tangent(d: int):
                         C[row, i2 * 3 + j2] += dJ * F[i1, j1]
                         C[row, i1 * 3 + j2] -= dJ * F[i2, j1]
                         C[row, i2 * 3 + j1] -= dJ * F[i1, j2]
-        if project:
-            positive = _positive_3d if d == 3 else _positive_2d
-            if not positive(C):
-                # Near rest the only negative stiffness is rotational (compressive stress):
-                # clamp the twist block, then accept what is semidefinite within round-off.
-                # Tolerance-aware acceptance: a twist block within round-off of zero counts as
-                # semidefinite (its clamp changes nothing), and the shifted matrix is positive
-                # definite iff the rest of C is; then C, with its twist block projected, is the
-                # projected tangent (no SVD).
-                shifted = numba.carray(ws.stack_array(81), (n, n))
-                twist_projection = _twist_projection_3d if d == 3 else _twist_projection_2d
-                if not twist_projection(F, C, shifted):
-                    return False, 0.0, 0
-                if not positive(shifted):
-                    return False, 0.0, 0
+        if project and (
+            spectral_projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
+            == SPECTRAL_NEEDS_SVD
+        ):
+            return False, 0.0, 0
         return True, psi, 0
 
     return tangent

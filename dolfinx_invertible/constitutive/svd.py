@@ -22,6 +22,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible.constitutive.symmetric3 import cross, dot, largest_cubic_root, null_vector
+
 __all__ = ["polar_svd", "polar_svd_point"]
 
 # Columns whose cosine is below this count as orthogonal (a few ulps).
@@ -72,20 +74,15 @@ def _unit_perpendicular(x0, x1, x2):
 
 
 @numba.njit(cache=True)
-def _dot(x, y):
-    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
-
-
-@numba.njit(cache=True)
 def _jacobi_pair(wp, wq, vp, vq):
     """Rotate columns p, q of W (and of V alongside) so that they become orthogonal.
 
     Columns are tuples so that the whole iteration stays in registers. Returns the new columns
     and |tan θ| of the rotation (0 when the pair was already orthogonal).
     """
-    alpha = _dot(wp, wp)
-    beta = _dot(wq, wq)
-    gamma = _dot(wp, wq)
+    alpha = dot(wp, wp)
+    beta = dot(wq, wq)
+    gamma = dot(wp, wq)
     # Squared test: no square root on the (frequent) converged path.
     if gamma * gamma <= _ORTHOGONALITY_TOLERANCE**2 * (alpha * beta):
         return wp, wq, vp, vq, 0.0
@@ -112,11 +109,6 @@ def _jacobi_pair(wp, wq, vp, vq):
 
 
 @numba.njit(cache=True)
-def _cross(x, y):
-    return (x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0])
-
-
-@numba.njit(cache=True)
 def _times(w0, w1, w2, v):
     """Return the matrix with columns w0, w1, w2 times the vector v."""
     return (
@@ -124,54 +116,6 @@ def _times(w0, w1, w2, v):
         w0[1] * v[0] + w1[1] * v[1] + w2[1] * v[2],
         w0[2] * v[0] + w1[2] * v[1] + w2[2] * v[2],
     )
-
-
-@numba.njit(cache=True)
-def _largest_cubic_root(r):
-    """Largest root c of 4c³ − 3c = r for 0 ≤ r ≤ 1, i.e. cos(arccos(r)/3), in [√3/2, 1].
-
-    The function is analytic on (−1, 1] (its branch point is r = −1), so a degree-6 Chebyshev
-    interpolant on [0, 1] is within 9e-8 of it; one Newton step on the cubic, whose derivative
-    12c² − 3 stays in [6, 9], takes that to 1.4e-14. This replaces arccos, cos and sin (and their
-    latency) in the trigonometric formula for the eigenvalues of a symmetric 3×3 matrix.
-    """
-    c = 0.8660254934184151 + r * (
-        0.16665781361554563
-        + r
-        * (
-            -0.04796516703978661
-            + r
-            * (
-                0.02373457681002681
-                + r
-                * (-0.012443532696727697 + r * (0.004995539940645294 - r * 0.0010047751159650683))
-            )
-        )
-    )
-    return c - (4.0 * c * c * c - 3.0 * c - r) / (12.0 * c * c - 3.0)
-
-
-@numba.njit(cache=True)
-def _eigenvector(a00, a11, a22, a01, a02, a12, lam):
-    """Return a (non-unit) null vector of A − λI and its squared length.
-
-    The longest of the cross products of two rows: for a simple eigenvalue λ the rows span the
-    plane orthogonal to the eigenvector, and the longest product is the best conditioned.
-    """
-    r0 = (a00 - lam, a01, a02)
-    r1 = (a01, a11 - lam, a12)
-    r2 = (a02, a12, a22 - lam)
-    c01 = _cross(r0, r1)
-    c02 = _cross(r0, r2)
-    c12 = _cross(r1, r2)
-    n01 = _dot(c01, c01)
-    n02 = _dot(c02, c02)
-    n12 = _dot(c12, c12)
-    if n01 >= n02 and n01 >= n12:
-        return c01, n01
-    if n02 >= n12:
-        return c02, n02
-    return c12, n12
 
 
 @numba.njit(cache=True)
@@ -190,12 +134,12 @@ def _warm_start(w0, w1, w2):
     covers an A with no eigenvector information (a multiple of the identity to round-off) and a
     non-finite A.
     """
-    a00 = _dot(w0, w0)
-    a11 = _dot(w1, w1)
-    a22 = _dot(w2, w2)
-    a01 = _dot(w0, w1)
-    a02 = _dot(w0, w2)
-    a12 = _dot(w1, w2)
+    a00 = dot(w0, w0)
+    a11 = dot(w1, w1)
+    a22 = dot(w2, w2)
+    a01 = dot(w0, w1)
+    a02 = dot(w0, w2)
+    a12 = dot(w1, w2)
     # A = q I + p B with tr B = 0 and tr B² = 6: eigenvalues q + 2p cos θ_k, cos 3θ_k = det(B)/2.
     q = (a00 + a11 + a22) * (1.0 / 3.0)
     b00 = a00 - q
@@ -235,28 +179,28 @@ def _warm_start(w0, w1, w2):
     # from sin 3θ = sin θ (4c² − 1), with 1 − r² in factored form.
     sign = np.copysign(1.0, r)
     ar = min(1.0, abs(r))
-    c = _largest_cubic_root(ar)
+    c = largest_cubic_root(ar)
     s = np.sqrt((1.0 - ar) * (1.0 + ar)) / (4.0 * c * c - 1.0)
-    x, nx = _eigenvector(a00, a11, a22, a01, a02, a12, q + sign * (2.0 * p) * c)
+    x, nx = null_vector(a00, a11, a22, a01, a02, a12, q + sign * (2.0 * p) * c)
     if not nx > 0.0:
         return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY
     if s < _SPLIT_SINE:
         inverse = 1.0 / np.sqrt(nx)
         x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
         y = _unit_perpendicular(x[0], x[1], x[2])
-        z = _cross(x, y)
+        z = cross(x, y)
         fy, fz, y, z, _ = _jacobi_pair(_times(w0, w1, w2, y), _times(w0, w1, w2, z), y, z)
         # (x, y, z) and its cyclic shift are rotations; x goes where the sort would put it.
         if sign > 0.0:
             return _times(w0, w1, w2, x), fy, fz, x, y, z, START_CLOSE_PAIR
         return fy, fz, _times(w0, w1, w2, x), y, z, x, START_CLOSE_PAIR
-    y, ny = _eigenvector(a00, a11, a22, a01, a02, a12, q - sign * p * (c + _SQRT3 * s))
+    y, ny = null_vector(a00, a11, a22, a01, a02, a12, q - sign * p * (c + _SQRT3 * s))
     inverse = 1.0 / np.sqrt(nx)
     # y minus its component along x, using x before normalisation (no wait for the square root).
-    projection = _dot(x, y) / nx
+    projection = dot(x, y) / nx
     y = (y[0] - projection * x[0], y[1] - projection * x[1], y[2] - projection * x[2])
     x = (x[0] * inverse, x[1] * inverse, x[2] * inverse)
-    length2 = _dot(y, y)
+    length2 = dot(y, y)
     if length2 > _RANK_TOLERANCE**2 * ny:
         inverse = 1.0 / np.sqrt(length2)
         y = (y[0] * inverse, y[1] * inverse, y[2] * inverse)
@@ -265,10 +209,10 @@ def _warm_start(w0, w1, w2):
     # Columns by decreasing eigenvalue: (x, y × x, y) for r ≥ 0, (y, x × y, x) for r < 0; both
     # are cyclic shifts of (a, b, a × b), rotations.
     if sign > 0.0:
-        z = _cross(y, x)
+        z = cross(y, x)
         fx, fz, fy = _times(w0, w1, w2, x), _times(w0, w1, w2, z), _times(w0, w1, w2, y)
         return fx, fz, fy, x, z, y, START_EIGENVECTORS
-    z = _cross(x, y)
+    z = cross(x, y)
     fy, fz, fx = _times(w0, w1, w2, y), _times(w0, w1, w2, z), _times(w0, w1, w2, x)
     return fy, fz, fx, y, z, x, START_EIGENVECTORS
 
@@ -297,12 +241,12 @@ def _first_order_sweep(w0, w1, w2, v0, v1, v2):
     tangents are independent, so their divisions do not wait for each other. On False the columns
     are returned unchanged.
     """
-    a0 = _dot(w0, w0)
-    a1 = _dot(w1, w1)
-    a2 = _dot(w2, w2)
-    t01 = _first_order_tangent(a0, a1, _dot(w0, w1))
-    t02 = _first_order_tangent(a0, a2, _dot(w0, w2))
-    t12 = _first_order_tangent(a1, a2, _dot(w1, w2))
+    a0 = dot(w0, w0)
+    a1 = dot(w1, w1)
+    a2 = dot(w2, w2)
+    t01 = _first_order_tangent(a0, a1, dot(w0, w1))
+    t02 = _first_order_tangent(a0, a2, dot(w0, w2))
+    t12 = _first_order_tangent(a1, a2, dot(w1, w2))
     if not max(abs(t01), abs(t02), abs(t12)) < _FIRST_ORDER_TANGENT:
         return False, w0, w1, w2, v0, v1, v2
     x0, x1, x2 = _times_identity_plus(w0, w1, w2, t01, t02, t12)
@@ -351,7 +295,7 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     # Outside the unscaled bounds on |F|² (or for a non-finite F) the columns are scaled by the
     # largest entry first.
     scale = 1.0
-    norm2 = _dot(w0, w0) + _dot(w1, w1) + _dot(w2, w2)
+    norm2 = dot(w0, w0) + dot(w1, w1) + dot(w2, w2)
     if not _UNSCALED_MIN < norm2 < _UNSCALED_MAX:
         scale = 0.0
         for i in range(3):
@@ -388,7 +332,7 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
         done = max(t01, t02, t12) < _CONVERGED_TANGENT
 
     # Sort columns by decreasing length; each swap negates one column so det V stays +1.
-    n0, n1, n2 = _dot(w0, w0), _dot(w1, w1), _dot(w2, w2)
+    n0, n1, n2 = dot(w0, w0), dot(w1, w1), dot(w2, w2)
     if n1 > n0:
         w0, w1, v0, v1, n0, n1 = w1, _negated(w0), v1, _negated(v0), n1, n0
     if n2 > n0:
@@ -408,9 +352,9 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
         u1 = (w1[0] * inverse_second, w1[1] * inverse_second, w1[2] * inverse_second)
     else:
         u1 = _unit_perpendicular(u0[0], u0[1], u0[2])
-    u2 = _cross(u0, u1)
+    u2 = cross(u0, u1)
     # Projecting onto u2 gives the last singular value its sign: negative iff det F < 0.
-    third = _dot(w2, u2)
+    third = dot(w2, u2)
     for i in range(3):
         U[i, 0] = u0[i]
         U[i, 1] = u1[i]

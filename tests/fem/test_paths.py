@@ -3,8 +3,7 @@
 Under a uniform stretch s·I every quadrature point is in the same state, so the path counts of
 :meth:`HyperelasticForms.path_counts` are known in advance: Neo-Hookean + C2 (ε = 0.9) needs no
 SVD at J = s³ ≥ ε; below ε every point is in the extension; at s = 0.97 (J ≈ 0.913 ≥ ε) the exact
-tangent has a negative twist eigenvalue, so the projected tangent needs the SVD and the exact one
-does not.
+tangent has negative twist eigenvalues, which the fast path projects without the SVD.
 """
 
 from __future__ import annotations
