@@ -273,7 +273,10 @@ def _specialised_spectral_projection(d: int):
             s1 = np.sqrt(l1)
             s2 = J / s1
             s3 = 1.0
-        sigma = (s1, s2, s3)
+        sigma = numba.carray(ws.stack_array(3), 3)
+        sigma[0] = s1
+        sigma[1] = s2
+        sigma[2] = s3
         shift = 0.0
         for alpha in range(n):
             shift = max(shift, C[alpha, alpha])
@@ -282,43 +285,46 @@ def _specialised_spectral_projection(d: int):
         # = 2Ψ₁ − Ψ_J σₖ + 4Ψ₂(σᵢ² + σᵢσⱼ + σⱼ²) and the twist stiffness (gᵢ + gⱼ)/(σᵢ + σⱼ)
         # = 2Ψ₁ + Ψ_J σₖ + 4Ψ₂(σᵢ² − σᵢσⱼ + σⱼ²), k the third index (σₖ → 1 in 2D): no
         # quotient of differences, so no loss when σᵢ ≈ σⱼ.
-        twist = (0.0, 0.0, 0.0)
+        twist = numba.carray(ws.stack_array(3), 3)
         negative_twists = 0
-        pairs = 1 if d == 2 else 3
-        for k in range(pairs):
-            i = (k + 1) % 3 if d == 3 else 0
-            j = (k + 2) % 3 if d == 3 else 1
-            other = sigma[k] if d == 3 else 1.0
+        for k in range(1 if d == 2 else 3):
+            i = 0 if d == 2 else (k + 1) % 3
+            j = 1 if d == 2 else (k + 2) % 3
+            other = 1.0 if d == 2 else sigma[k]
             squares = sigma[i] * sigma[i] + sigma[j] * sigma[j]
             product = sigma[i] * sigma[j]
             stretch = 2.0 * d1 - dJ * other + 4.0 * d2 * (squares + product)
             if not stretch > margin:
                 return SPECTRAL_NEEDS_SVD
-            stiffness = 2.0 * d1 + dJ * other + 4.0 * d2 * (squares - product)
-            if stiffness < 0.0:
+            twist[k] = 2.0 * d1 + dJ * other + 4.0 * d2 * (squares - product)
+            if twist[k] < 0.0:
                 negative_twists += 1
-            if k == 0:
-                twist = (stiffness, twist[1], twist[2])
-            elif k == 1:
-                twist = (twist[0], stiffness, twist[2])
-            else:
-                twist = (twist[0], twist[1], stiffness)
         # The diagonal block: the σ-Hessian of Ψ(I₁(σ), I₂(σ), J(σ)), with the invariants'
         # gradients (2σᵢ, 4σᵢ³, J/σᵢ) and ∂²J/∂σᵢ∂σⱼ = σₖ (1 in 2D).
-        g0 = (2.0 * s1, 2.0 * s2, 2.0 * s3)
-        g1 = (4.0 * s1 * s1 * s1, 4.0 * s2 * s2 * s2, 4.0 * s3 * s3 * s3)
-        g2 = (s2 * s3, s1 * s3, s1 * s2) if d == 3 else (s2, s1, 0.0)
+        gradients = numba.carray(ws.stack_array(9), (3, 3))
+        for i in range(d):
+            gradients[0, i] = 2.0 * sigma[i]
+            gradients[1, i] = 4.0 * sigma[i] * sigma[i] * sigma[i]
+        if d == 3:
+            gradients[2, 0] = s2 * s3
+            gradients[2, 1] = s1 * s3
+            gradients[2, 2] = s1 * s2
+        else:
+            gradients[2, 0] = s2
+            gradients[2, 1] = s1
         h = numba.carray(ws.stack_array(9), (3, 3))
         for i in range(d):
             for j in range(i, d):
-                w0 = c11 * g0[j] + c12 * g1[j] + c1J * g2[j]
-                w1 = c12 * g0[j] + c22 * g1[j] + c2J * g2[j]
-                w2 = c1J * g0[j] + c2J * g1[j] + cJJ * g2[j]
-                value = g0[i] * w0 + g1[i] * w1 + g2[i] * w2
+                x0 = gradients[0, j]
+                x1 = gradients[1, j]
+                x2 = gradients[2, j]
+                value = gradients[0, i] * (c11 * x0 + c12 * x1 + c1J * x2)
+                value += gradients[1, i] * (c12 * x0 + c22 * x1 + c2J * x2)
+                value += gradients[2, i] * (c1J * x0 + c2J * x1 + cJJ * x2)
                 if i == j:
                     value += 2.0 * d1 + 12.0 * d2 * sigma[i] * sigma[i] - margin
                 else:
-                    value += dJ * (sigma[3 - i - j] if d == 3 else 1.0)
+                    value += dJ * (1.0 if d == 2 else sigma[3 - i - j])
                 h[i, j] = value
         if d == 3:
             positive = _positive_definite_3(h[0, 0], h[1, 1], h[2, 2], h[0, 1], h[0, 2], h[1, 2])
@@ -472,6 +478,8 @@ def invariant_tangent(F, I1, I2, J, model_id, extension_id, positive_only, param
 
 def _specialised_invariant_tangent(d: int):
     """:func:`invariant_tangent` compiled for one dimension: constant loop bounds unroll."""
+    # This dimension's projection, not the dispatcher: that would compile both.
+    projection = _spectral_projection_3d if d == 3 else _spectral_projection_2d
 
     @numba.njit(cache=True)
     def tangent(F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C):
@@ -553,8 +561,7 @@ def _specialised_invariant_tangent(d: int):
                         C[row, i1 * 3 + j2] -= dJ * F[i2, j1]
                         C[row, i2 * 3 + j1] -= dJ * F[i1, j2]
         if project and (
-            spectral_projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
-            == SPECTRAL_NEEDS_SVD
+            projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C) == SPECTRAL_NEEDS_SVD
         ):
             return False, 0.0, 0
         return True, psi, 0
