@@ -106,11 +106,19 @@ def test_scaling_and_memory_in_child_processes():
 def test_points_report_covers_every_stage_and_the_paths_taken():
     report = bench_points.run(points=200, repeats=1)
     json.dumps(report)
-    fast, extension = (report["stages"][state] for state in bench_points.STRETCHES)
-    assert set(fast) == set(extension)
+    fast, rest, extension = (report["stages"][state] for state in bench_points.STRETCHES)
+    assert set(fast) == set(rest) == set(extension)
     assert all(entry["nanoseconds_per_point"] > 0.0 for entry in fast.values())
-    # Away from the threshold energy and stress never need the SVD; inside it they always do.
-    for stage in ("point energy", "point stress", "point tangent, exact"):
+    # Away from the threshold nothing needs the SVD (near rest the projected tangent clamps its
+    # twist stiffnesses without it). Inside it (J ≈ 0.86 ± 0.02 against ε = 0.9) nearly every
+    # point does, the same points for every stage.
+    for stage in (
+        "point energy",
+        "point stress",
+        "point tangent, exact",
+        "point tangent, projected",
+    ):
         assert fast[stage]["svd_share"] == 0.0
-        assert extension[stage]["svd_share"] == 1.0
+        assert rest[stage]["svd_share"] == 0.0
+        assert extension[stage]["svd_share"] == extension["point energy"]["svd_share"] > 0.95
     assert bench_points.table(report)
