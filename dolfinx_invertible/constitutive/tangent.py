@@ -25,7 +25,13 @@ from dolfinx_invertible.constitutive.principal import (
     sum_slope,
 )
 
-__all__ = ["clamp_symmetric", "first_piola", "project_symmetric_3", "stress_derivative"]
+__all__ = [
+    "clamp_symmetric",
+    "first_piola",
+    "project_symmetric_3",
+    "stress_derivative",
+    "workspace_first_piola",
+]
 
 _MAX_EIGEN_SWEEPS = 30
 
@@ -40,6 +46,38 @@ def first_piola(U, g, V, P):
             for m in range(d):
                 total += U[i, m] * g[m] * V[j, m]
             P[i, j] = total
+
+
+@numba.njit(cache=True)
+def workspace_first_piola(work, P):
+    """P = U diag(g) Vᵀ from the U, G and V workspace slots, read by offset.
+
+    The same as :func:`first_piola` without the three views, whose reference counting costs
+    about as much as the product.
+    """
+    if P.shape[0] == 3:
+        _workspace_first_piola_3d(work, P)
+    else:
+        _workspace_first_piola_2d(work, P)
+
+
+def _specialised_workspace_first_piola(d: int):
+    """:func:`workspace_first_piola` for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def product(work, P):
+        for i in range(d):
+            for j in range(d):
+                total = 0.0
+                for m in range(d):
+                    total += work[ws.U + d * i + m] * work[ws.G + m] * work[ws.V + d * j + m]
+                P[i, j] = total
+
+    return product
+
+
+_workspace_first_piola_2d = _specialised_workspace_first_piola(2)
+_workspace_first_piola_3d = _specialised_workspace_first_piola(3)
 
 
 @numba.njit(cache=True)
