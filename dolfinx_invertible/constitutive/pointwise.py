@@ -25,7 +25,7 @@ from dolfinx_invertible.constitutive.principal import (
     principal_derivatives,
 )
 from dolfinx_invertible.constitutive.svd import polar_svd_point
-from dolfinx_invertible.constitutive.tangent import first_piola, stress_derivative
+from dolfinx_invertible.constitutive.tangent import stress_derivative, workspace_first_piola
 
 __all__ = [
     "point_energy",
@@ -133,8 +133,7 @@ def point_stress(F, model_id, extension_id, positive_only, params, work, P):
     through_svd = False
     if not done:
         psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _STRESS, work)
-        d = F.shape[0]
-        first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
+        workspace_first_piola(work, P)
         through_svd = True
     if not abs(psi) < np.inf:
         psi = np.inf
@@ -164,7 +163,7 @@ def point_tangent(F, model_id, extension_id, positive_only, params, project, wor
         psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _TANGENT, work)
         d = F.shape[0]
         sigma = ws.vector(work, ws.SIGMA, d)
-        first_piola(ws.matrix(work, ws.U, d), ws.vector(work, ws.G, d), ws.matrix(work, ws.V, d), P)
+        workspace_first_piola(work, P)
         if region == UNDEFINED_REGION:
             C[:, :] = 0.0
         else:

@@ -27,7 +27,9 @@ __all__ = [
     "UNDEFINED_REGION",
     "principal_derivatives",
     "gradient_slope",
+    "quotient_slope",
     "rotation_slope",
+    "sum_slope",
 ]
 
 # Region code of a point where the unextended energy is not defined (J ≤ 0 for Neo-Hookean).
@@ -103,6 +105,19 @@ def principal_derivatives(model_id, extension_id, positive_only, sigma, params, 
 
 
 @numba.njit(cache=True)
+def quotient_slope(sigma_i, sigma_j, g_i, g_j, h_ii, h_jj, h_ij):
+    """(gᵢ − gⱼ)/(σᵢ − σⱼ) from scalars, with the symmetric limit for a tiny gap.
+
+    The scalar core of :func:`gradient_slope` off the model: passing no arrays lets the caller
+    inline it without the reference counting that every array argument or view costs.
+    """
+    gap = sigma_i - sigma_j
+    if abs(gap) > _EQUAL_GAP * max(abs(sigma_i), abs(sigma_j)):
+        return (g_i - g_j) / gap
+    return 0.5 * (h_ii + h_jj) - h_ij
+
+
+@numba.njit(cache=True)
 def gradient_slope(model_id, region, sigma, params, work, i, j):
     """aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ), robust for σᵢ ≈ σⱼ.
 
@@ -115,17 +130,22 @@ def gradient_slope(model_id, region, sigma, params, work, i, j):
         return model_gradient_slope(model_id, sigma, params, i, j, ws.table(work, ws.H_TABLE, d))
     gradient = ws.vector(work, ws.G, d)
     hessian = ws.matrix(work, ws.H, d)
-    gap = sigma[i] - sigma[j]
-    if abs(gap) > _EQUAL_GAP * max(abs(sigma[i]), abs(sigma[j])):
-        return (gradient[i] - gradient[j]) / gap
-    return 0.5 * (hessian[i, i] + hessian[j, j]) - hessian[i, j]
+    return quotient_slope(
+        sigma[i], sigma[j], gradient[i], gradient[j], hessian[i, i], hessian[j, j], hessian[i, j]
+    )
+
+
+@numba.njit(cache=True)
+def sum_slope(sigma_i, sigma_j, g_i, g_j):
+    """(gᵢ + gⱼ)/(σᵢ + σⱼ) from scalars: the core of :func:`rotation_slope`."""
+    total = sigma_i + sigma_j
+    floor = _KINK_GAP * max(1.0, abs(sigma_i), abs(sigma_j))
+    if abs(total) < floor:
+        total = floor if total >= 0.0 else -floor
+    return (g_i + g_j) / total
 
 
 @numba.njit(cache=True)
 def rotation_slope(sigma, g, i, j):
     """bᵢⱼ = (gᵢ + gⱼ)/(σᵢ + σⱼ) with the denominator kept away from 0 (sign preserved)."""
-    total = sigma[i] + sigma[j]
-    floor = _KINK_GAP * max(1.0, abs(sigma[i]), abs(sigma[j]))
-    if abs(total) < floor:
-        total = floor if total >= 0.0 else -floor
-    return (g[i] + g[j]) / total
+    return sum_slope(sigma[i], sigma[j], g[i], g[j])

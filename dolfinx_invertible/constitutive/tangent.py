@@ -18,9 +18,20 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.principal import gradient_slope, rotation_slope
+from dolfinx_invertible.constitutive.principal import (
+    gradient_slope,
+    quotient_slope,
+    rotation_slope,
+    sum_slope,
+)
 
-__all__ = ["clamp_symmetric", "first_piola", "project_symmetric_3", "stress_derivative"]
+__all__ = [
+    "clamp_symmetric",
+    "first_piola",
+    "project_symmetric_3",
+    "stress_derivative",
+    "workspace_first_piola",
+]
 
 _MAX_EIGEN_SWEEPS = 30
 
@@ -35,6 +46,38 @@ def first_piola(U, g, V, P):
             for m in range(d):
                 total += U[i, m] * g[m] * V[j, m]
             P[i, j] = total
+
+
+@numba.njit(cache=True)
+def workspace_first_piola(work, P):
+    """P = U diag(g) Vᵀ from the U, G and V workspace slots, read by offset.
+
+    The same as :func:`first_piola` without the three views, whose reference counting costs
+    about as much as the product.
+    """
+    if P.shape[0] == 3:
+        _workspace_first_piola_3d(work, P)
+    else:
+        _workspace_first_piola_2d(work, P)
+
+
+def _specialised_workspace_first_piola(d: int):
+    """:func:`workspace_first_piola` for one dimension: constant loop bounds unroll."""
+
+    @numba.njit(cache=True)
+    def product(work, P):
+        for i in range(d):
+            for j in range(d):
+                total = 0.0
+                for m in range(d):
+                    total += work[ws.U + d * i + m] * work[ws.G + m] * work[ws.V + d * j + m]
+                P[i, j] = total
+
+    return product
+
+
+_workspace_first_piola_2d = _specialised_workspace_first_piola(2)
+_workspace_first_piola_3d = _specialised_workspace_first_piola(3)
 
 
 @numba.njit(cache=True)
@@ -267,4 +310,93 @@ def _specialised_stress_derivative(d: int):
 
 
 _stress_derivative_2d = _specialised_stress_derivative(2)
-_stress_derivative_3d = _specialised_stress_derivative(3)
+
+
+@numba.njit(cache=True)
+def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
+    """Write the 3D tangent as C = Σₖ wₖ eₖᵀ over nine modes eₖ of the SVD frame.
+
+    The modes are the three diagonal ones Dₘ and each pair's stretch and twist (without their
+    1/√2); wₖ is Σₙ Aₙₘ Dₙ for a diagonal mode and ½a s or ½b t for a pair's. The workspace is
+    read by offset rather than through views, and off the model the slopes come from their
+    scalar cores: every array view or array argument costs two out-of-line reference-count
+    calls, which made up most of the time of the assembly here. Modes and weights live in one
+    stack array, which cannot alias ``C``, so each entry of ``C`` is written once.
+    """
+    U = ws.U
+    V = ws.V
+    A = ws.A_BLOCK
+    for i in range(9):
+        work[A + i] = work[ws.H + i]
+    if project:
+        clamp_symmetric(
+            ws.matrix(work, A, 3),
+            ws.vector(work, ws.EIGENVALUES, 3),
+            ws.matrix(work, ws.EIGENVECTORS, 3),
+        )
+    # The slopes first: on the model they call into the model with array arguments.
+    stretch01, twist01 = _pair_slopes(model_id, region, sigma, params, work, project, 0, 1)
+    stretch02, twist02 = _pair_slopes(model_id, region, sigma, params, work, project, 0, 2)
+    stretch12, twist12 = _pair_slopes(model_id, region, sigma, params, work, project, 1, 2)
+    # Rows 0–8 the modes, rows 9–17 their weights.
+    table = numba.carray(ws.stack_array(162), (18, 9))
+    for m in range(3):
+        for i in range(3):
+            for j in range(3):
+                table[m, 3 * i + j] = work[U + 3 * i + m] * work[V + 3 * j + m]
+    for m in range(3):
+        for alpha in range(9):
+            table[9 + m, alpha] = (
+                work[A + m] * table[0, alpha]
+                + work[A + 3 + m] * table[1, alpha]
+                + work[A + 6 + m] * table[2, alpha]
+            )
+    row = 3
+    for i in range(2):
+        for j in range(i + 1, 3):
+            if i == 0:
+                stretch, twist = (stretch01, twist01) if j == 1 else (stretch02, twist02)
+            else:
+                stretch, twist = stretch12, twist12
+            for p in range(3):
+                for r in range(3):
+                    x = work[U + 3 * p + i] * work[V + 3 * r + j]
+                    y = work[U + 3 * p + j] * work[V + 3 * r + i]
+                    table[row, 3 * p + r] = x + y
+                    table[row + 1, 3 * p + r] = x - y
+                    table[9 + row, 3 * p + r] = stretch * (x + y)
+                    table[10 + row, 3 * p + r] = twist * (x - y)
+            row += 2
+    for alpha in range(9):
+        for beta in range(alpha, 9):
+            total = 0.0
+            for k in range(9):
+                total += table[9 + k, alpha] * table[k, beta]
+            C[alpha, beta] = total
+            C[beta, alpha] = total
+
+
+@numba.njit(cache=True)
+def _pair_slopes(model_id, region, sigma, params, work, project, i, j):
+    """½aᵢⱼ and ½bᵢⱼ (clamped at 0 if ``project``): the weights of the pair's two modes."""
+    sigma_i = sigma[i]
+    sigma_j = sigma[j]
+    g_i = work[ws.G + i]
+    g_j = work[ws.G + j]
+    if region == 0:
+        stretch = gradient_slope(model_id, region, sigma, params, work, i, j)
+    else:
+        stretch = quotient_slope(
+            sigma_i,
+            sigma_j,
+            g_i,
+            g_j,
+            work[ws.H + 4 * i],
+            work[ws.H + 4 * j],
+            work[ws.H + 3 * i + j],
+        )
+    twist = sum_slope(sigma_i, sigma_j, g_i, g_j)
+    if project:
+        stretch = max(stretch, 0.0)
+        twist = max(twist, 0.0)
+    return 0.5 * stretch, 0.5 * twist

@@ -17,7 +17,10 @@ import numba
 
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.extensions.base import Extension
-from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
+from dolfinx_invertible.constitutive.models.registry import (
+    model_anchor_derivatives,
+    model_derivatives_into,
+)
 from dolfinx_invertible.constitutive.polynomial import first_root_in_unit_interval
 
 __all__ = ["C2", "derivatives", "c2_derivatives", "threshold_parameter"]
@@ -70,99 +73,102 @@ def _specialised_c2_derivatives(d: int):
             J *= sigma[i]
         if J >= eps:
             return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
-        a = ws.vector(work, ws.A_OFFSET, d)
-        q = ws.vector(work, ws.Q_POINT, d)
-        z = ws.vector(work, ws.Z, d)
-        n = ws.vector(work, ws.N, d)
-        t2 = ws.vector(work, ws.T2, d)
-        q3 = ws.vector(work, ws.Q3, d)
+        # Slots are read and written by offset: each array view costs two out-of-line
+        # reference-count calls, more than the arithmetic they would serve.
+        a = ws.A_OFFSET
         for i in range(d):
-            a[i] = sigma[i] - 1.0
-        s = threshold_parameter(a, eps)
+            work[a + i] = sigma[i] - 1.0
+        s = threshold_parameter(ws.vector(work, a, d), eps)
         w = 1.0 - s
         for i in range(d):
-            q[i] = 1.0 + s * a[i]
-        g = ws.vector(work, ws.MODEL_G, d)
-        H = ws.matrix(work, ws.MODEL_H, d)
-        T = ws.tensor3(work, ws.MODEL_T, d)
-        Q = ws.tensor4(work, ws.MODEL_Q, d)
-        psi_q = model_derivatives_into(model_id, q, params, order + 2, work, ws.MODEL_G, ws.MODEL_H)
+            work[ws.Q_POINT + i] = 1.0 + s * work[a + i]
+        # g, H at q and T[a, ·, ·], T[a, a, ·], Q[a, a, ·, ·]: what the orders below need.
+        psi_q = model_anchor_derivatives(
+            model_id, ws.vector(work, ws.Q_POINT, d), params, order + 2, work
+        )
+        g = ws.MODEL_G
+        H = ws.MODEL_H
         slope = 0.0  # ψ′ along the segment: ∇Ψ̂(q)·a
         curvature = 0.0  # ψ″: aᵀ ∇²Ψ̂(q) a
         for i in range(d):
-            slope += g[i] * a[i]
+            slope += work[g + i] * work[a + i]
             for j in range(d):
-                curvature += a[i] * H[i, j] * a[j]
+                curvature += work[a + i] * work[H + d * i + j] * work[a + j]
         psi = psi_q + w * slope + 0.5 * w * w * curvature
         if order < 1:
             return psi, 1
 
+        z = ws.Z
+        n = ws.N
+        t2 = ws.T2
         third = 0.0  # ψ‴ = T[a, a, a]
         crossing = 0.0  # a·z with z = 1/q, proportional to dJ/ds at the crossing
-        for k in range(d):
-            t2[k] = 0.0
-            for i in range(d):
-                for j in range(d):
-                    t2[k] += T[i, j, k] * a[i] * a[j]
-            third += t2[k] * a[k]
-            z[k] = 1.0 / q[k]
-            crossing += a[k] * z[k]
         scale = 0.0
         for k in range(d):
-            scale += abs(a[k] * z[k])
+            third += work[t2 + k] * work[a + k]
+            work[z + k] = 1.0 / work[ws.Q_POINT + k]
+            crossing += work[a + k] * work[z + k]
+            scale += abs(work[a + k] * work[z + k])
         if crossing > -_MIN_CROSSING_SLOPE * scale:
             crossing = -_MIN_CROSSING_SLOPE * max(scale, 1e-300)
         for k in range(d):
-            n[k] = -s * z[k] / crossing  # ∇s
-        out = ws.vector(work, ws.G, d)
+            work[n + k] = -s * work[z + k] / crossing  # ∇s
+        out = ws.G
         for k in range(d):
             Ha = 0.0
             for j in range(d):
-                Ha += H[k, j] * a[j]
-            out[k] = g[k] + w * Ha + 0.5 * s * w * w * t2[k] + 0.5 * w * w * third * n[k]
+                Ha += work[H + d * k + j] * work[a + j]
+            work[out + k] = (
+                work[g + k]
+                + w * Ha
+                + 0.5 * s * w * w * work[t2 + k]
+                + 0.5 * w * w * third * work[n + k]
+            )
         if order < 2:
             return psi, 1
 
-        T1 = ws.matrix(work, ws.T1, d)
-        Q2 = ws.matrix(work, ws.Q2, d)
-        Dn = ws.matrix(work, ws.DN, d)
+        T1 = ws.T1
+        Q2 = ws.Q2
+        q3 = ws.Q3
         fourth = 0.0
         for k in range(d):
-            q3[k] = 0.0
+            total = 0.0
             for m in range(d):
-                T1[k, m] = 0.0
-                Q2[k, m] = 0.0
-                for i in range(d):
-                    T1[k, m] += T[i, k, m] * a[i]
-                    for j in range(d):
-                        Q2[k, m] += Q[i, j, k, m] * a[i] * a[j]
-                q3[k] += Q2[k, m] * a[m]
-            fourth += q3[k] * a[k]
+                total += work[Q2 + d * k + m] * work[a + m]
+            work[q3 + k] = total
+            fourth += total * work[a + k]
         # Hessian of s(σ) by differentiating ∇s = −s z/(a·z) once more.
         weighted_square = 0.0
         for i in range(d):
-            weighted_square += a[i] * a[i] * z[i] * z[i]
+            weighted_square += work[a + i] * work[a + i] * work[z + i] * work[z + i]
+        Dn = ws.DN
         for k in range(d):
+            z_k = work[z + k]
             for m in range(d):
-                dz = -z[k] * z[k] * (n[m] * a[k] + (s if k == m else 0.0))
-                dcrossing = z[m] - n[m] * weighted_square - s * a[m] * z[m] * z[m]
-                Dn[k, m] = -(n[m] * z[k] + s * dz) / crossing + s * z[k] * dcrossing / (
+                n_m = work[n + m]
+                dz = -z_k * z_k * (n_m * work[a + k] + (s if k == m else 0.0))
+                dcrossing = (
+                    work[z + m]
+                    - n_m * weighted_square
+                    - s * work[a + m] * work[z + m] * work[z + m]
+                )
+                work[Dn + d * k + m] = -(n_m * z_k + s * dz) / crossing + s * z_k * dcrossing / (
                     crossing * crossing
                 )
-        out_H = ws.matrix(work, ws.H, d)
+        out_H = ws.H
         for k in range(d):
             for m in range(k, d):
                 value = (
-                    H[k, m]
-                    + s * w * (1.0 + w) * T1[k, m]
-                    + 0.5 * s * s * w * w * Q2[k, m]
-                    + 1.5 * w * w * (t2[k] * n[m] + n[k] * t2[m])
-                    + 0.5 * s * w * w * (q3[k] * n[m] + n[k] * q3[m])
-                    + 0.5 * (w * w * fourth - 2.0 * w * third) * n[k] * n[m]
-                    + 0.25 * w * w * third * (Dn[k, m] + Dn[m, k])
+                    work[H + d * k + m]
+                    + s * w * (1.0 + w) * work[T1 + d * k + m]
+                    + 0.5 * s * s * w * w * work[Q2 + d * k + m]
+                    + 1.5 * w * w * (work[t2 + k] * work[n + m] + work[n + k] * work[t2 + m])
+                    + 0.5 * s * w * w * (work[q3 + k] * work[n + m] + work[n + k] * work[q3 + m])
+                    + 0.5 * (w * w * fourth - 2.0 * w * third) * work[n + k] * work[n + m]
+                    + 0.25 * w * w * third * (work[Dn + d * k + m] + work[Dn + d * m + k])
                 )
-                out_H[k, m] = value
-                out_H[m, k] = value
+                work[out_H + d * k + m] = value
+                work[out_H + d * m + k] = value
         return psi, 1
 
     return specialised

@@ -24,6 +24,7 @@ from dolfinx_invertible.constitutive.models.corotated import Corotated
 from dolfinx_invertible.constitutive.models.fixed_corotated import FixedCorotated
 from dolfinx_invertible.constitutive.models.neo_hookean import NeoHookean
 from dolfinx_invertible.constitutive.models.separable import (
+    separable_anchor_derivatives,
     separable_derivatives,
     separable_gradient_slope,
 )
@@ -32,6 +33,7 @@ from dolfinx_invertible.constitutive.models.stvk import StVK
 
 __all__ = [
     "MODELS",
+    "model_anchor_derivatives",
     "model_derivatives",
     "model_derivatives_into",
     "model_gradient_slope",
@@ -234,3 +236,18 @@ def model_derivatives_into(model_id, sigma, params, order, work, gradient_slot, 
         ws.table(work, ws.F_TABLE, d),
         ws.table(work, ws.H_TABLE, d),
     )
+
+
+@numba.njit(cache=True)
+def model_anchor_derivatives(model_id, q, params, order, work):
+    """Ψ̂ at ``q`` (the workspace's Q_POINT) with its derivatives contracted with A_OFFSET.
+
+    See :func:`~dolfinx_invertible.constitutive.models.separable.separable_anchor_derivatives`
+    for what goes where; the tables at q are left in F_TABLE and H_TABLE.
+    """
+    d = q.shape[0]
+    mu = params[0]
+    lam = params[1]
+    _tables(model_id, q, mu, lam, ws.table(work, ws.F_TABLE, d), ws.table(work, ws.H_TABLE, d))
+    c, k1, k2 = _constants(model_id, mu, lam)
+    return separable_anchor_derivatives(q, order, c, k1, k2, work)

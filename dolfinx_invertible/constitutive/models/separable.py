@@ -15,7 +15,14 @@ from __future__ import annotations
 
 import numba
 
-__all__ = ["separable_derivatives", "separable_gradient_slope", "volume_derivative"]
+from dolfinx_invertible.constitutive import workspace as ws
+
+__all__ = [
+    "separable_anchor_derivatives",
+    "separable_derivatives",
+    "separable_gradient_slope",
+    "volume_derivative",
+]
 
 
 @numba.njit(cache=True)
@@ -184,3 +191,176 @@ def separable_gradient_slope(sigma, i, j, f_slope, h_slope, c, k1, k2, h):
         J *= sigma[m]
     dK = k1 + k2 * (J - 1.0)
     return f_slope + c * S * h_slope - dK * volume_derivative(sigma, i, j, -1, -1)
+
+
+@numba.njit(cache=True)
+def _volume_first(q0, q1, q2, d, i):
+    """∂J/∂σᵢ from scalars (q2 unused in 2D)."""
+    if d == 2:
+        return q1 if i == 0 else q0
+    if i == 0:
+        return q1 * q2
+    if i == 1:
+        return q0 * q2
+    return q0 * q1
+
+
+@numba.njit(cache=True)
+def _volume_second(q0, q1, q2, d, i, j):
+    """∂²J/∂σᵢ∂σⱼ from scalars."""
+    if i == j:
+        return 0.0
+    if d == 2:
+        return 1.0
+    other = 3 - i - j
+    if other == 0:
+        return q0
+    if other == 1:
+        return q1
+    return q2
+
+
+@numba.njit(cache=True)
+def separable_anchor_derivatives(q, order, c, k1, k2, work):
+    """Ψ̂(q) with g, H and the contractions of the third and fourth derivatives with a.
+
+    An extension evaluated at an anchor q only needs T[a, ·, ·] and Q[a, a, ·, ·] for the
+    offset a of its segment, which the separable form gives directly, without the d³ and d⁴
+    tensors of :func:`separable_derivatives`. Everything is read from and written to ``work``
+    by offset (slots Q_POINT, A_OFFSET, F_TABLE, H_TABLE in; MODEL_G, MODEL_H, T1, T2, Q2 out):
+    each array view costs two out-of-line reference-count calls, more than the arithmetic.
+    Up to ``order`` (≤ 4): g at 1, H at 2, T[a, ·, ·] and T[a, a, ·] at 3, Q[a, a, ·, ·] at 4.
+    """
+    if q.shape[0] == 3:
+        return _separable_anchor_3d(order, c, k1, k2, work)
+    return _separable_anchor_2d(order, c, k1, k2, work)
+
+
+def _specialised_separable_anchor(d: int):
+    """Compile :func:`separable_anchor_derivatives` for one dimension."""
+
+    @numba.njit(cache=True)
+    def specialised(order, c, k1, k2, work):
+        q = ws.Q_POINT
+        a = ws.A_OFFSET
+        f = ws.F_TABLE
+        h = ws.H_TABLE
+        has_volume = k1 != 0.0 or k2 != 0.0
+        q0 = work[q]
+        q1 = work[q + 1]
+        q2 = work[q + 2] if d == 3 else 0.0
+        S = 0.0
+        J = 1.0
+        psi = 0.0
+        for i in range(d):
+            psi += work[f + 5 * i]
+            S += work[h + 5 * i]
+            J *= work[q + i]
+        psi += 0.5 * c * S * S + k1 * (J - 1.0) + 0.5 * k2 * (J - 1.0) ** 2
+        if order < 1:
+            return psi
+        dK = k1 + k2 * (J - 1.0)
+        for i in range(d):
+            value = work[f + 5 * i + 1] + c * S * work[h + 5 * i + 1]
+            if has_volume:
+                value += dK * _volume_first(q0, q1, q2, d, i)
+            work[ws.MODEL_G + i] = value
+        if order < 2:
+            return psi
+        for i in range(d):
+            for j in range(d):
+                value = c * work[h + 5 * i + 1] * work[h + 5 * j + 1]
+                if has_volume:
+                    value += k2 * _volume_first(q0, q1, q2, d, i) * _volume_first(
+                        q0, q1, q2, d, j
+                    ) + dK * _volume_second(q0, q1, q2, d, i, j)
+                if i == j:
+                    value += work[f + 5 * i + 2] + c * S * work[h + 5 * i + 2]
+                work[ws.MODEL_H + d * i + j] = value
+        if order < 3:
+            return psi
+        # Contractions with a of h′ and of J's derivatives: J_a = ∇J·a, (J_a)ₖ = Σᵢ Jᵢₖ aᵢ,
+        # J_aa = aᵀ∇²J a, and in 3D Σᵢ Jᵢₖₘ aᵢ = a of the third index (k ≠ m).
+        slope_h = 0.0
+        volume_a = 0.0
+        for i in range(d):
+            slope_h += work[h + 5 * i + 1] * work[a + i]
+            volume_a += _volume_first(q0, q1, q2, d, i) * work[a + i]
+        for k in range(d):
+            volume_ak = 0.0
+            for i in range(d):
+                volume_ak += _volume_second(q0, q1, q2, d, i, k) * work[a + i]
+            work[ws.Q3 + k] = volume_ak  # scratch until the extension fills Q3
+        for k in range(d):
+            a_k = work[a + k]
+            t2 = 0.0
+            for m in range(d):
+                a_m = work[a + m]
+                value = c * (a_k * work[h + 5 * k + 2] * work[h + 5 * m + 1])
+                value += c * (a_m * work[h + 5 * m + 2] * work[h + 5 * k + 1])
+                if has_volume:
+                    volume_akm = 0.0
+                    if d == 3 and k != m:
+                        volume_akm = work[a + 3 - k - m]
+                    value += (
+                        k2
+                        * (
+                            work[ws.Q3 + k] * _volume_first(q0, q1, q2, d, m)
+                            + work[ws.Q3 + m] * _volume_first(q0, q1, q2, d, k)
+                            + _volume_second(q0, q1, q2, d, k, m) * volume_a
+                        )
+                        + dK * volume_akm
+                    )
+                if k == m:
+                    value += c * work[h + 5 * k + 2] * slope_h
+                    value += a_k * (work[f + 5 * k + 3] + c * S * work[h + 5 * k + 3])
+                work[ws.T1 + d * k + m] = value
+                t2 += value * a_m
+            work[ws.T2 + k] = t2
+        if order < 4:
+            return psi
+        curvature_h = 0.0
+        volume_aa = 0.0
+        for i in range(d):
+            curvature_h += work[h + 5 * i + 2] * work[a + i] * work[a + i]
+            volume_aa += work[ws.Q3 + i] * work[a + i]
+        for k in range(d):
+            a_k = work[a + k]
+            for m in range(d):
+                a_m = work[a + m]
+                value = c * (
+                    2.0 * a_k * work[h + 5 * k + 2] * a_m * work[h + 5 * m + 2]
+                    + work[h + 5 * k + 1] * work[h + 5 * m + 3] * a_m * a_m
+                    + work[h + 5 * m + 1] * work[h + 5 * k + 3] * a_k * a_k
+                )
+                if has_volume:
+                    volume_akm = 0.0
+                    if d == 3 and k != m:
+                        volume_akm = work[a + 3 - k - m]
+                    # Σᵢⱼ Jᵢⱼₖ aᵢ aⱼ: in 3D twice the product of the two other offsets.
+                    volume_aak = 0.0
+                    volume_aam = 0.0
+                    if d == 3:
+                        volume_aak = 2.0 * work[a + (k + 1) % 3] * work[a + (k + 2) % 3]
+                        volume_aam = 2.0 * work[a + (m + 1) % 3] * work[a + (m + 2) % 3]
+                    value += k2 * (
+                        volume_aa * _volume_second(q0, q1, q2, d, k, m)
+                        + 2.0 * work[ws.Q3 + k] * work[ws.Q3 + m]
+                        + volume_aak * _volume_first(q0, q1, q2, d, m)
+                        + volume_aam * _volume_first(q0, q1, q2, d, k)
+                        + 2.0 * volume_a * volume_akm
+                    )
+                if k == m:
+                    value += c * (
+                        curvature_h * work[h + 5 * k + 2]
+                        + 2.0 * slope_h * work[h + 5 * k + 3] * a_k
+                    )
+                    value += a_k * a_k * (work[f + 5 * k + 4] + c * S * work[h + 5 * k + 4])
+                work[ws.Q2 + d * k + m] = value
+        return psi
+
+    return specialised
+
+
+_separable_anchor_2d = _specialised_separable_anchor(2)
+_separable_anchor_3d = _specialised_separable_anchor(3)
