@@ -78,7 +78,7 @@ def _is_null(typingctx, pointer):
     return types.boolean(pointer), codegen
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, forceinline=True)
 def count_points(c, first_field, points, svd_points):
     """Add a cell's point counts to the row the constants ``c`` point to (if any)."""
     pointer = _pointer_from_bits(c[COUNTERS_SLOT])

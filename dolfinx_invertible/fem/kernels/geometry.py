@@ -1,4 +1,4 @@
-"""The geometry map at a quadrature point: physical basis gradients, |det J| and F = I + ∇u."""
+"""The geometry map at a quadrature point: J⁻¹, physical basis gradients, |det J| and F = I + ∇u."""
 
 from __future__ import annotations
 
@@ -14,62 +14,100 @@ from dolfinx_invertible.fem.kernels.constants import (
     WEIGHTS_START,
 )
 
-__all__ = ["cell_layout", "physical_gradients", "deformation_gradient", "point_geometry"]
+__all__ = [
+    "cell_layout",
+    "deformation_gradient",
+    "inverse_jacobian",
+    "physical_gradients",
+    "point_geometry",
+    "reference_deformation",
+]
 
 
-@numba.njit(cache=True)
-def physical_gradients(coordinates, geometry, basis, gradients, jacobian, nodes, d):
-    """Write the physical basis gradients at one point into ``gradients``; return |det J|.
+@numba.njit(cache=True, forceinline=True)
+def inverse_jacobian(coordinates, geometry, jacobian, inverse, geometry_nodes, d):
+    """Write J and K = J⁻¹ (rows: reference directions) at one point; return |det J|.
 
-    ``geometry`` and ``basis`` are this point's reference derivatives, flat (node, direction).
+    ``geometry`` holds this point's reference derivatives of the geometry basis, flat
+    (node, direction). Inlined into the kernels (as the other helpers here): called out of line,
+    every array argument costs a reference-count call and the node loops cannot be unrolled for
+    the element at hand.
     """
-    geometry_nodes = coordinates.shape[0]
     for i in range(d):
         for r in range(d):
             total = 0.0
             for v in range(geometry_nodes):
                 total += coordinates[v, i] * geometry[v * d + r]
             jacobian[i, r] = total
-    if d == 2:
-        determinant = jacobian[0, 0] * jacobian[1, 1] - jacobian[0, 1] * jacobian[1, 0]
-        inverse = 1.0 / determinant
-        k00 = jacobian[1, 1] * inverse
-        k01 = -jacobian[0, 1] * inverse
-        k10 = -jacobian[1, 0] * inverse
-        k11 = jacobian[0, 0] * inverse
-        for a in range(nodes):
-            x = basis[2 * a]
-            y = basis[2 * a + 1]
-            gradients[a, 0] = x * k00 + y * k10
-            gradients[a, 1] = x * k01 + y * k11
-        return abs(determinant)
     j = jacobian
+    if d == 2:
+        determinant = j[0, 0] * j[1, 1] - j[0, 1] * j[1, 0]
+        reciprocal = 1.0 / determinant
+        inverse[0, 0] = j[1, 1] * reciprocal
+        inverse[0, 1] = -j[0, 1] * reciprocal
+        inverse[1, 0] = -j[1, 0] * reciprocal
+        inverse[1, 1] = j[0, 0] * reciprocal
+        return abs(determinant)
     c00 = j[1, 1] * j[2, 2] - j[1, 2] * j[2, 1]
     c01 = j[1, 2] * j[2, 0] - j[1, 0] * j[2, 2]
     c02 = j[1, 0] * j[2, 1] - j[1, 1] * j[2, 0]
     determinant = j[0, 0] * c00 + j[0, 1] * c01 + j[0, 2] * c02
-    inverse = 1.0 / determinant
-    # K = J⁻¹ (rows r: reference direction), from the cofactors.
-    k00 = c00 * inverse
-    k10 = c01 * inverse
-    k20 = c02 * inverse
-    k01 = (j[0, 2] * j[2, 1] - j[0, 1] * j[2, 2]) * inverse
-    k11 = (j[0, 0] * j[2, 2] - j[0, 2] * j[2, 0]) * inverse
-    k21 = (j[0, 1] * j[2, 0] - j[0, 0] * j[2, 1]) * inverse
-    k02 = (j[0, 1] * j[1, 2] - j[0, 2] * j[1, 1]) * inverse
-    k12 = (j[0, 2] * j[1, 0] - j[0, 0] * j[1, 2]) * inverse
-    k22 = (j[0, 0] * j[1, 1] - j[0, 1] * j[1, 0]) * inverse
-    for a in range(nodes):
-        x = basis[3 * a]
-        y = basis[3 * a + 1]
-        z = basis[3 * a + 2]
-        gradients[a, 0] = x * k00 + y * k10 + z * k20
-        gradients[a, 1] = x * k01 + y * k11 + z * k21
-        gradients[a, 2] = x * k02 + y * k12 + z * k22
+    reciprocal = 1.0 / determinant
+    # From the cofactors.
+    inverse[0, 0] = c00 * reciprocal
+    inverse[1, 0] = c01 * reciprocal
+    inverse[2, 0] = c02 * reciprocal
+    inverse[0, 1] = (j[0, 2] * j[2, 1] - j[0, 1] * j[2, 2]) * reciprocal
+    inverse[1, 1] = (j[0, 0] * j[2, 2] - j[0, 2] * j[2, 0]) * reciprocal
+    inverse[2, 1] = (j[0, 1] * j[2, 0] - j[0, 0] * j[2, 1]) * reciprocal
+    inverse[0, 2] = (j[0, 1] * j[1, 2] - j[0, 2] * j[1, 1]) * reciprocal
+    inverse[1, 2] = (j[0, 2] * j[1, 0] - j[0, 0] * j[1, 2]) * reciprocal
+    inverse[2, 2] = (j[0, 0] * j[1, 1] - j[0, 1] * j[1, 0]) * reciprocal
     return abs(determinant)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, forceinline=True)
+def physical_gradients(coordinates, geometry, basis, gradients, jacobian, nodes, d):
+    """Write the physical basis gradients at one point into ``gradients``; return |det J|.
+
+    ``geometry`` and ``basis`` are this point's reference derivatives, flat (node, direction).
+    """
+    inverse = numba.carray(ws.stack_array(9), (d, d))
+    scale = inverse_jacobian(coordinates, geometry, jacobian, inverse, coordinates.shape[0], d)
+    for a in range(nodes):
+        for j in range(d):
+            total = 0.0
+            for r in range(d):
+                total += basis[a * d + r] * inverse[r, j]
+            gradients[a, j] = total
+    return scale
+
+
+@numba.njit(cache=True, forceinline=True)
+def reference_deformation(displacement, basis, inverse, F, nodes, d):
+    """F = I + (Σ_a u_a ⊗ ∂φ_a/∂ξ) K into ``F``, from the reference derivatives ``basis``.
+
+    Contracting with K = J⁻¹ after the sum over the nodes, rather than forming the physical
+    gradients first, saves nodes × d² multiplications per point.
+    """
+    reference = numba.carray(ws.stack_array(9), (d, d))
+    for i in range(d):
+        for r in range(d):
+            reference[i, r] = 0.0
+    for a in range(nodes):
+        for i in range(d):
+            value = displacement[a * d + i]
+            for r in range(d):
+                reference[i, r] += value * basis[a * d + r]
+    for i in range(d):
+        for j in range(d):
+            total = 1.0 if i == j else 0.0
+            for r in range(d):
+                total += reference[i, r] * inverse[r, j]
+            F[i, j] = total
+
+
+@numba.njit(cache=True, forceinline=True)
 def deformation_gradient(displacement, gradients, F, nodes, d):
     """F = I + Σ_a u_a ⊗ ∇φ_a into ``F``."""
     for i in range(d):
@@ -82,7 +120,7 @@ def deformation_gradient(displacement, gradients, F, nodes, d):
                 F[i, j] += value * gradients[a, j]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, forceinline=True)
 def cell_layout(c_, w_, coordinates_, d):
     """Return views of the kernel inputs for dimension ``d``, and the element sizes.
 
@@ -101,7 +139,7 @@ def cell_layout(c_, w_, coordinates_, d):
     return c, nodes, points, basis_start, geometry_start, displacement, coordinates
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, forceinline=True)
 def point_geometry(
     c, q, basis_start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
 ):
