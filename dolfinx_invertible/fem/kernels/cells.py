@@ -111,7 +111,9 @@ def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
         scale = point_geometry(
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
-        psi, _, through_svd = point_energy(F, model_id, extension_id, positive_only, params, work)
+        psi, _, through_svd = point_energy(
+            F, d, model_id, extension_id, positive_only, params, work
+        )
         svd_points += through_svd
         total += scale * psi
     A_[0] += total
@@ -139,7 +141,9 @@ def cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id):
         scale = point_geometry(
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
-        _, _, through_svd = point_stress(F, model_id, extension_id, positive_only, params, work, P)
+        _, _, through_svd = point_stress(
+            F, d, model_id, extension_id, positive_only, params, work, P
+        )
         svd_points += through_svd
         for a in range(nodes):
             for i in range(d):
@@ -177,7 +181,7 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
         _, _, through_svd = point_tangent(
-            F, model_id, extension_id, positive_only, params, project, work, P, C
+            F, d, model_id, extension_id, positive_only, params, project, work, P, C
         )
         svd_points += through_svd
         for row in range(n):
