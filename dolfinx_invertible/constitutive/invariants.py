@@ -464,7 +464,7 @@ dispatch_on_dimension(spectral_projection, _SPECTRAL_PROJECTION)
 
 def _specialised_invariant_tangent(d: int):
     """:func:`invariant_tangent` compiled for one dimension: constant loop bounds unroll."""
-    # This dimension's projection, not the dispatcher: that would compile both.
+    # This dimension's projection itself: the closure's d is a constant, so no dispatch.
     projection = _spectral_projection_3d if d == 3 else _spectral_projection_2d
 
     @numba.njit(cache=True)
