@@ -68,10 +68,12 @@ def dispatch_on_dimension(stub, twins):
         if not set(twin_names) <= set(names) - {"d"}:
             raise ValueError(f"{twin_names} are not arguments of {stub.__name__}{tuple(names)}")
         forwarded = ", ".join(twin_names)
+        # Named after the stub and the dimension, as profiles and numba's messages show it.
+        name = f"{stub.__name__}_{dimension}d"
         namespace = {"twin": twin, "__name__": stub.__module__}
-        source = f"def implementation({', '.join(names)}):\n    return twin({forwarded})\n"
+        source = f"def {name}({', '.join(names)}):\n    return twin({forwarded})\n"
         exec(source, namespace)  # noqa: S102 - a fixed template over the stub's own argument names
-        implementations[dimension] = namespace["implementation"]
+        implementations[dimension] = namespace[name]
 
     # numba reads the typing function's signature, which functools.wraps makes the stub's.
     @functools.wraps(stub)
