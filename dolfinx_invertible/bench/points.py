@@ -43,7 +43,7 @@ def _svd_stage(F):
     checksum = 0.0
     for n in range(F.shape[0]):
         sigma = ws.vector(work, ws.SIGMA, 3)
-        polar_svd_point(F[n], ws.matrix(work, ws.U, 3), sigma, ws.matrix(work, ws.V, 3))
+        polar_svd_point(F[n], 3, ws.matrix(work, ws.U, 3), sigma, ws.matrix(work, ws.V, 3))
         checksum += sigma[0]
     return checksum
 
@@ -63,9 +63,9 @@ def _stage_functions(model_id: int, extension_id: int):
         checksum = 0.0
         for n in range(F.shape[0]):
             sigma = ws.vector(work, ws.SIGMA, 3)
-            polar_svd_point(F[n], ws.matrix(work, ws.U, 3), sigma, ws.matrix(work, ws.V, 3))
+            polar_svd_point(F[n], 3, ws.matrix(work, ws.U, 3), sigma, ws.matrix(work, ws.V, 3))
             psi, _ = principal_derivatives(
-                model_id, extension_id, False, sigma, params, order, work
+                model_id, extension_id, False, sigma, 3, params, order, work
             )
             checksum += psi
         return checksum
@@ -79,15 +79,15 @@ def _stage_functions(model_id: int, extension_id: int):
         for n in range(F.shape[0]):
             if kind == 0:
                 psi, _, through_svd = point_energy(
-                    F[n], model_id, extension_id, False, params, work
+                    F[n], 3, model_id, extension_id, False, params, work
                 )
             elif kind == 1:
                 psi, _, through_svd = point_stress(
-                    F[n], model_id, extension_id, False, params, work, P
+                    F[n], 3, model_id, extension_id, False, params, work, P
                 )
             else:
                 psi, _, through_svd = point_tangent(
-                    F[n], model_id, extension_id, False, params, project, work, P, C
+                    F[n], 3, model_id, extension_id, False, params, project, work, P, C
                 )
             checksum += psi
             svd_points += through_svd

@@ -31,6 +31,7 @@ import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.extensions.registry import C1_ID, C2_ID, IFE_ID
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.models.registry import (
     model_invariant_curvature,
     model_invariant_terms,
@@ -438,8 +439,7 @@ _spectral_projection_2d = _specialised_spectral_projection(2)
 _spectral_projection_3d = _specialised_spectral_projection(3)
 
 
-@numba.njit(cache=True)
-def spectral_projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C):
+def spectral_projection(F, d, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C):
     """Project the exact invariant-form tangent ``C`` onto the PSD cone in place, without an SVD.
 
     The eigenvalues of the tangent of an isotropic energy are the σ-Hessian's, the pairs'
@@ -452,33 +452,19 @@ def spectral_projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C):
     negative twist stiffnesses clamped (0: ``C`` is already positive semidefinite and left
     alone), or :data:`SPECTRAL_NEEDS_SVD` (``C`` untouched) for a point it does not decide: a
     stretch or Hessian eigenvalue not clearly positive, σ too spread to be estimated this way, a
-    twist clamp at J ≤ 0, or a polar iteration that does not converge.
+    twist clamp at J ≤ 0, or a polar iteration that does not converge. ``F`` is ``d×d``, ``d`` a
+    compile-time literal in compiled code.
     """
-    if F.shape[0] == 3:
-        return _spectral_projection_3d(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
-    return _spectral_projection_2d(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
+    return _SPECTRAL_PROJECTION[d](F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C)
 
 
-@numba.njit(cache=True)
-def invariant_tangent(F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C):
-    """(done, Ψ, region) with P and dP/dF written when ``done``.
-
-    False when the SVD path is needed: the extension may be active, the model is not written in
-    invariants, or the projection was asked for and :func:`spectral_projection` cannot decide
-    the point.
-    """
-    if F.shape[0] == 3:
-        return _invariant_tangent_3d(
-            F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
-        )
-    return _invariant_tangent_2d(
-        F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
-    )
+_SPECTRAL_PROJECTION = {2: _spectral_projection_2d, 3: _spectral_projection_3d}
+dispatch_on_dimension(spectral_projection, _SPECTRAL_PROJECTION)
 
 
 def _specialised_invariant_tangent(d: int):
     """:func:`invariant_tangent` compiled for one dimension: constant loop bounds unroll."""
-    # This dimension's projection, not the dispatcher: that would compile both.
+    # This dimension's projection itself: the closure's d is a constant, so no dispatch.
     projection = _spectral_projection_3d if d == 3 else _spectral_projection_2d
 
     @numba.njit(cache=True)
@@ -569,5 +555,19 @@ def _specialised_invariant_tangent(d: int):
     return tangent
 
 
-_invariant_tangent_2d = _specialised_invariant_tangent(2)
-_invariant_tangent_3d = _specialised_invariant_tangent(3)
+def invariant_tangent(
+    F, d, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
+):
+    """(done, Ψ, region) with P and dP/dF written when ``done``.
+
+    False when the SVD path is needed: the extension may be active, the model is not written in
+    invariants, or the projection was asked for and :func:`spectral_projection` cannot decide
+    the point. ``F`` is ``d×d``, ``d`` a compile-time literal in compiled code.
+    """
+    return _INVARIANT_TANGENT[d](
+        F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
+    )
+
+
+_INVARIANT_TANGENT = {d: _specialised_invariant_tangent(d) for d in (2, 3)}
+dispatch_on_dimension(invariant_tangent, _INVARIANT_TANGENT)

@@ -96,8 +96,8 @@ class Material:
     def __repr__(self) -> str:
         return f"Material({self.model!r}, extension={self.extension!r})"
 
-    def _loop(self, kind: str):
-        return pointwise.batch(kind, self.model.model_id, self.extension_id)
+    def _loop(self, kind: str, d: int):
+        return pointwise.batch(kind, self.model.model_id, self.extension_id, d)
 
     def _require_energy(self):
         if self.extension is not None and not self.extension.has_energy:
@@ -142,7 +142,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         energy = np.empty(len(batch))
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("energy")(batch, self.positive_only, self.parameters, energy, region)
+        self._loop("energy", batch.shape[1])(
+            batch, self.positive_only, self.parameters, energy, region
+        )
         return energy[0] if single else energy
 
     def stress(self, F: np.ndarray) -> np.ndarray:
@@ -150,7 +152,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         stress = np.empty_like(batch)
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("stress")(batch, self.positive_only, self.parameters, stress, region)
+        self._loop("stress", batch.shape[1])(
+            batch, self.positive_only, self.parameters, stress, region
+        )
         self._require_defined(region, "stress")
         self._require_finite(region, batch, "stress")
         return stress[0] if single else stress
@@ -165,7 +169,7 @@ class Material:
         d = batch.shape[1]
         tangent = np.empty((len(batch), d * d, d * d))
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("tangent")(
+        self._loop("tangent", d)(
             batch, self.positive_only, self.parameters, bool(project), tangent, region
         )
         self._require_defined(region, "tangent")
@@ -177,7 +181,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         energy = np.empty(len(batch))
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("energy")(batch, self.positive_only, self.parameters, energy, region)
+        self._loop("energy", batch.shape[1])(
+            batch, self.positive_only, self.parameters, energy, region
+        )
         return region[0] if single else region
 
     def _sigma_derivatives(self, sigma, order: int):
@@ -189,7 +195,7 @@ class Material:
         gradient = np.zeros((n, d))
         hessian = np.zeros((n, d, d))
         region = np.empty(n, dtype=np.int64)
-        self._loop("sigma")(
+        self._loop("sigma", d)(
             batch, self.positive_only, self.parameters, order, energy, gradient, hessian, region
         )
         # Chain rule through the sign flips of the canonicalisation.

@@ -1,9 +1,9 @@
 """Per-point energy density, stress and tangent from F, and their batch loops.
 
 These compiled functions are the single implementation behind :class:`~dolfinx_invertible.Material`
-and the DOLFINx cell kernels. The model and extension ids are compile-time literals
-(:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles its own chain. A
-point's status is its region code (see
+and the DOLFINx cell kernels. The model and extension ids and the dimension ``d`` of F are
+compile-time literals (:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles
+its own chain, for the dimension in use only. A point's status is its region code (see
 :func:`~dolfinx_invertible.constitutive.principal.principal_derivatives`).
 """
 
@@ -51,16 +51,17 @@ _TANGENT = np.array([2])[0]
 
 
 @numba.njit(cache=True)
-def _through_svd(F, model_id, extension_id, positive_only, params, order, work):
+def _through_svd(F, d, model_id, extension_id, positive_only, params, order, work):
     """Take the SVD path; return (Ψ, region).
 
     U, σ, V go into the workspace, then Ψ̂ext(σ) with derivatives up to ``order`` into the G, H
     slots.
     """
-    d = F.shape[0]
     sigma = ws.vector(work, ws.SIGMA, d)
-    polar_svd_point(F, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
-    return principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work)
+    polar_svd_point(F, d, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
+    return principal_derivatives(
+        model_id, extension_id, positive_only, sigma, d, params, order, work
+    )
 
 
 @numba.njit(cache=True)
@@ -96,11 +97,12 @@ def _finite(M):
 
 
 @numba.njit(cache=True)
-def point_energy(F, model_id, extension_id, positive_only, params, work):
+def point_energy(F, d, model_id, extension_id, positive_only, params, work):
     """Return (Ψ(F), region, through_svd).
 
-    ``work`` is a workspace buffer (see :mod:`~dolfinx_invertible.constitutive.workspace`);
-    ``through_svd`` says whether the SVD path was taken. An energy that overflows is +inf.
+    ``F`` is ``d×d``; ``work`` is a workspace buffer (see
+    :mod:`~dolfinx_invertible.constitutive.workspace`); ``through_svd`` says whether the SVD
+    path was taken. An energy that overflows is +inf.
     """
     I1, I2, J = invariants(F, model_id, extension_id)
     if _overflowed(I1, J):
@@ -110,7 +112,9 @@ def point_energy(F, model_id, extension_id, positive_only, params, work):
     )
     through_svd = False
     if not done:
-        psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _ENERGY, work)
+        psi, region = _through_svd(
+            F, d, model_id, extension_id, positive_only, params, _ENERGY, work
+        )
         through_svd = True
     if not abs(psi) < np.inf:  # NaN (inf − inf) or ±inf: beyond the largest double
         psi = np.inf
@@ -118,7 +122,7 @@ def point_energy(F, model_id, extension_id, positive_only, params, work):
 
 
 @numba.njit(cache=True)
-def point_stress(F, model_id, extension_id, positive_only, params, work, P):
+def point_stress(F, d, model_id, extension_id, positive_only, params, work, P):
     """P(F) into ``P``; returns (Ψ(F), region, through_svd).
 
     Where the stress overflows, P is zero, Ψ is +inf and the region :data:`OVERFLOW_REGION`.
@@ -132,8 +136,10 @@ def point_stress(F, model_id, extension_id, positive_only, params, work, P):
     )
     through_svd = False
     if not done:
-        psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _STRESS, work)
-        workspace_first_piola(work, P)
+        psi, region = _through_svd(
+            F, d, model_id, extension_id, positive_only, params, _STRESS, work
+        )
+        workspace_first_piola(work, P, d)
         through_svd = True
     if not abs(psi) < np.inf:
         psi = np.inf
@@ -144,7 +150,7 @@ def point_stress(F, model_id, extension_id, positive_only, params, work, P):
 
 
 @numba.njit(cache=True)
-def point_tangent(F, model_id, extension_id, positive_only, params, project, work, P, C):
+def point_tangent(F, d, model_id, extension_id, positive_only, params, project, work, P, C):
     """Write P(F) into ``P`` and dP/dF into ``C``; return (Ψ, region, through_svd).
 
     The tangent is SPD-projected if ``project``. Where the stress or the tangent overflows, both
@@ -156,18 +162,19 @@ def point_tangent(F, model_id, extension_id, positive_only, params, project, wor
         C[:, :] = 0.0
         return np.inf, OVERFLOW_REGION, False
     done, psi, region = invariant_tangent(
-        F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
+        F, d, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C
     )
     through_svd = False
     if not done:
-        psi, region = _through_svd(F, model_id, extension_id, positive_only, params, _TANGENT, work)
-        d = F.shape[0]
+        psi, region = _through_svd(
+            F, d, model_id, extension_id, positive_only, params, _TANGENT, work
+        )
         sigma = ws.vector(work, ws.SIGMA, d)
-        workspace_first_piola(work, P)
+        workspace_first_piola(work, P, d)
         if region == UNDEFINED_REGION:
             C[:, :] = 0.0
         else:
-            stress_derivative(model_id, region, sigma, params, work, project, C)
+            stress_derivative(model_id, region, sigma, d, params, work, project, C)
         through_svd = True
     if not abs(psi) < np.inf:
         psi = np.inf
@@ -179,45 +186,45 @@ def point_tangent(F, model_id, extension_id, positive_only, params, project, wor
 
 
 @numba.njit(cache=True)
-def energy_batch(F, model_id, extension_id, positive_only, params, energy, region):
-    """Energy and region of every F in the batch into ``energy`` and ``region``."""
+def energy_batch(F, d, model_id, extension_id, positive_only, params, energy, region):
+    """Energy and region of every F (``d×d``) in the batch into ``energy`` and ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         energy[n], region[n], _ = point_energy(
-            F[n], model_id, extension_id, positive_only, params, work
+            F[n], d, model_id, extension_id, positive_only, params, work
         )
 
 
 @numba.njit(cache=True)
-def stress_batch(F, model_id, extension_id, positive_only, params, P, region):
-    """Stress and region of every F in the batch into ``P`` and ``region``."""
+def stress_batch(F, d, model_id, extension_id, positive_only, params, P, region):
+    """Stress and region of every F (``d×d``) in the batch into ``P`` and ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         _, region[n], _ = point_stress(
-            F[n], model_id, extension_id, positive_only, params, work, P[n]
+            F[n], d, model_id, extension_id, positive_only, params, work, P[n]
         )
 
 
 @numba.njit(cache=True)
-def tangent_batch(F, model_id, extension_id, positive_only, params, project, C, region):
-    """Tangent (projected if ``project``) and region of every F into ``C`` and ``region``."""
-    d = F.shape[1]
+def tangent_batch(F, d, model_id, extension_id, positive_only, params, project, C, region):
+    """Tangent (projected if ``project``) and region of every F (``d×d``) into ``C``, ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
     P = np.empty((d, d))
     for n in range(F.shape[0]):
         _, region[n], _ = point_tangent(
-            F[n], model_id, extension_id, positive_only, params, project, work, P, C[n]
+            F[n], d, model_id, extension_id, positive_only, params, project, work, P, C[n]
         )
 
 
 @numba.njit(cache=True)
-def sigma_batch(sigma, model_id, extension_id, positive_only, params, order, energy, g, H, region):
+def sigma_batch(
+    sigma, d, model_id, extension_id, positive_only, params, order, energy, g, H, region
+):
     """Energy, gradient and Hessian in σ-space (up to ``order``) for canonical signed σ."""
-    d = sigma.shape[1]
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(sigma.shape[0]):
         psi, region[n] = principal_derivatives(
-            model_id, extension_id, positive_only, sigma[n], params, order, work
+            model_id, extension_id, positive_only, sigma[n], d, params, order, work
         )
         energy[n] = psi if abs(psi) < np.inf else np.inf
         if order >= 1:
@@ -235,48 +242,50 @@ _BATCH_LOOPS = {
     "tangent": tangent_batch,
     "sigma": sigma_batch,
 }
-_BATCH_ENTRIES: dict[tuple[str, int, int], object] = {}
+_BATCH_ENTRIES: dict[tuple[str, int, int, int], object] = {}
 
 
-# Each entry captures the ids as integers: inside it they are literals (numba types a closure's
-# integer cells as constants), and numba keys its disk cache on those values. A plain Python
-# int passed to a compiled loop would instead be retyped on every call.
-def _batch_entry(kind: str, model_id: int, extension_id: int):
+# Each entry captures the ids and the dimension as integers: inside it they are literals (numba
+# types a closure's integer cells as constants), and numba keys its disk cache on those values.
+# A plain Python int passed to a compiled loop would instead be retyped on every call.
+def _batch_entry(kind: str, model_id: int, extension_id: int, d: int):
     if kind == "energy":
 
         def entry(F, positive_only, params, energy, region):
-            energy_batch(F, model_id, extension_id, positive_only, params, energy, region)
+            energy_batch(F, d, model_id, extension_id, positive_only, params, energy, region)
 
     elif kind == "stress":
 
         def entry(F, positive_only, params, P, region):
-            stress_batch(F, model_id, extension_id, positive_only, params, P, region)
+            stress_batch(F, d, model_id, extension_id, positive_only, params, P, region)
 
     elif kind == "tangent":
 
         def entry(F, positive_only, params, project, C, region):
-            tangent_batch(F, model_id, extension_id, positive_only, params, project, C, region)
+            tangent_batch(F, d, model_id, extension_id, positive_only, params, project, C, region)
 
     else:
 
         def entry(sigma, positive_only, params, order, energy, g, H, region):
             sigma_batch(
-                sigma, model_id, extension_id, positive_only, params, order, energy, g, H, region
-            )
+                sigma, d, model_id, extension_id, positive_only, params, order, energy, g, H,
+                region,
+            )  # fmt: skip
 
     return numba.njit(cache=True)(entry)
 
 
-def batch(kind: str, model_id: int, extension_id: int):
-    """Return the compiled batch loop ``kind`` ("energy", "stress", "tangent", "sigma").
+def batch(kind: str, model_id: int, extension_id: int, d: int):
+    """Return the compiled batch loop ``kind`` ("energy", "stress", "tangent", "sigma") for d×d F.
 
-    Its arguments are those of the loop of that name without the two ids, which are compiled
-    in (:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles its own chain,
-    once per process (or loads it from numba's disk cache).
+    Its arguments are those of the loop of that name without the two ids and the dimension
+    ``d`` (2 or 3), which are compiled in (:mod:`~dolfinx_invertible.constitutive.literal`):
+    each material compiles its own chain for the dimension in use, once per process (or loads
+    it from numba's disk cache).
     """
     if kind not in _BATCH_LOOPS:
         raise ValueError(f"kind must be one of {tuple(_BATCH_LOOPS)}, got {kind!r}")
-    key = (kind, int(model_id), int(extension_id))
+    key = (kind, int(model_id), int(extension_id), int(d))
     if key not in _BATCH_ENTRIES:
         _BATCH_ENTRIES[key] = _batch_entry(*key)
     return _BATCH_ENTRIES[key]

@@ -44,8 +44,7 @@ _EQUAL_GAP = 1e-6
 _KINK_GAP = 1e-8
 
 
-def _plain_derivatives(model_id, positive_only, sigma, params, order, work):
-    d = sigma.shape[0]
+def _plain_derivatives(model_id, positive_only, sigma, d, params, order, work):
     if positive_only:
         J = 1.0
         for i in range(d):
@@ -54,23 +53,23 @@ def _plain_derivatives(model_id, positive_only, sigma, params, order, work):
             ws.vector(work, ws.G, d)[:] = 0.0
             ws.matrix(work, ws.H, d)[:] = 0.0
             return np.inf, UNDEFINED_REGION
-    return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+    return model_derivatives_into(model_id, sigma, d, params, order, work, ws.G, ws.H), 0
 
 
 _plain_derivatives_compiled = numba.njit(cache=True)(_plain_derivatives)
 
 
-def _extended_derivatives(extension_id, model_id, positive_only, sigma, params, order, work):
+def _extended_derivatives(extension_id, model_id, positive_only, sigma, d, params, order, work):
     extension = EXTENSIONS[extension_id]
     if extension is None:
-        return _plain_derivatives_compiled(model_id, positive_only, sigma, params, order, work)
+        return _plain_derivatives_compiled(model_id, positive_only, sigma, d, params, order, work)
     module = sys.modules[extension.__module__]
-    return module.derivatives(model_id, sigma, params, order, work)
+    return module.derivatives(model_id, sigma, d, params, order, work)
 
 
 @overload(_extended_derivatives, prefer_literal=True)
 def _extended_derivatives_compiled(
-    extension_id, model_id, positive_only, sigma, params, order, work
+    extension_id, model_id, positive_only, sigma, d, params, order, work
 ):
     # The extension resolved while typing: only the one in use is compiled.
     value = literal_id(extension_id)
@@ -80,28 +79,30 @@ def _extended_derivatives_compiled(
     if extension is None:
         plain = _plain_derivatives_compiled
 
-        def without_extension(extension_id, model_id, positive_only, sigma, params, order, work):
-            return plain(model_id, positive_only, sigma, params, order, work)
+        def without_extension(extension_id, model_id, positive_only, sigma, d, params, order, work):
+            return plain(model_id, positive_only, sigma, d, params, order, work)
 
         return without_extension
     derivatives = sys.modules[extension.__module__].derivatives
 
-    def implementation(extension_id, model_id, positive_only, sigma, params, order, work):
-        return derivatives(model_id, sigma, params, order, work)
+    def implementation(extension_id, model_id, positive_only, sigma, d, params, order, work):
+        return derivatives(model_id, sigma, d, params, order, work)
 
     return implementation
 
 
 @numba.njit(cache=True)
-def principal_derivatives(model_id, extension_id, positive_only, sigma, params, order, work):
+def principal_derivatives(model_id, extension_id, positive_only, sigma, d, params, order, work):
     """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient and Hessian into the G, H slots.
 
     Returns ``(energy, region)``: region 0 is the model itself, a positive value an extension
     region, :data:`UNDEFINED_REGION` a point where the unextended model is undefined (then the
-    energy is +inf and the derivatives are zero). The ids are compile-time literals
-    (:mod:`~dolfinx_invertible.constitutive.literal`).
+    energy is +inf and the derivatives are zero). The ids and ``d``, the length of ``sigma``,
+    are compile-time literals (:mod:`~dolfinx_invertible.constitutive.literal`).
     """
-    return _extended_derivatives(extension_id, model_id, positive_only, sigma, params, order, work)
+    return _extended_derivatives(
+        extension_id, model_id, positive_only, sigma, d, params, order, work
+    )
 
 
 @numba.njit(cache=True)

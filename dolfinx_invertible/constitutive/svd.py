@@ -22,6 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.symmetric3 import cross, dot, largest_cubic_root, null_vector
 
 __all__ = ["polar_svd", "polar_svd_point"]
@@ -399,19 +400,22 @@ def _polar_svd_2(F, U, sigma, V):
     sigma[1] = second
 
 
-@numba.njit(cache=True)
-def polar_svd_point(F, U, sigma, V):
-    """Polar SVD of one ``d×d`` matrix (d = 2 or 3), written into ``U``, ``sigma``, ``V``."""
-    if F.shape[0] == 2:
-        _polar_svd_2(F, U, sigma, V)
-    else:
-        _polar_svd_3(F, U, sigma, V)
+def polar_svd_point(F, d, U, sigma, V):
+    """Polar SVD of one ``d×d`` matrix (d = 2 or 3), written into ``U``, ``sigma``, ``V``.
+
+    In compiled code ``d`` is a compile-time literal: only that dimension's SVD is compiled.
+    """
+    _POLAR_SVD[d](F, U, sigma, V)
+
+
+_POLAR_SVD = {2: _polar_svd_2, 3: _polar_svd_3}
+dispatch_on_dimension(polar_svd_point, _POLAR_SVD)
 
 
 @numba.njit(cache=True)
-def _polar_svd_batch(F, U, sigma, V):
+def _polar_svd_batch(F, d, U, sigma, V):
     for n in range(F.shape[0]):
-        polar_svd_point(F[n], U[n], sigma[n], V[n])
+        polar_svd_point(F[n], d, U[n], sigma[n], V[n])
 
 
 def polar_svd(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -434,7 +438,7 @@ def polar_svd(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     U = np.empty_like(batch)
     V = np.empty_like(batch)
     sigma = np.empty(batch.shape[:2])
-    _polar_svd_batch(batch, U, sigma, V)
+    _polar_svd_batch(batch, batch.shape[1], U, sigma, V)
     if single:
         return U[0], sigma[0], V[0]
     return U, sigma, V

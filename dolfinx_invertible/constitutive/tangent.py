@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.principal import (
     gradient_slope,
     quotient_slope,
@@ -48,19 +49,6 @@ def first_piola(U, g, V, P):
             P[i, j] = total
 
 
-@numba.njit(cache=True)
-def workspace_first_piola(work, P):
-    """P = U diag(g) Vᵀ from the U, G and V workspace slots, read by offset.
-
-    The same as :func:`first_piola` without the three views, whose reference counting costs
-    about as much as the product.
-    """
-    if P.shape[0] == 3:
-        _workspace_first_piola_3d(work, P)
-    else:
-        _workspace_first_piola_2d(work, P)
-
-
 def _specialised_workspace_first_piola(d: int):
     """:func:`workspace_first_piola` for one dimension: constant loop bounds unroll."""
 
@@ -76,8 +64,17 @@ def _specialised_workspace_first_piola(d: int):
     return product
 
 
-_workspace_first_piola_2d = _specialised_workspace_first_piola(2)
-_workspace_first_piola_3d = _specialised_workspace_first_piola(3)
+def workspace_first_piola(work, P, d):
+    """P = U diag(g) Vᵀ from the U, G and V workspace slots, read by offset.
+
+    The same as :func:`first_piola` without the three views, whose reference counting costs
+    about as much as the product. ``P`` is ``d×d``, ``d`` a compile-time literal.
+    """
+    _WORKSPACE_FIRST_PIOLA[d](work, P)
+
+
+_WORKSPACE_FIRST_PIOLA = {d: _specialised_workspace_first_piola(d) for d in (2, 3)}
+dispatch_on_dimension(workspace_first_piola, _WORKSPACE_FIRST_PIOLA)
 
 
 @numba.njit(cache=True)
@@ -162,15 +159,6 @@ def project_symmetric_3(A):
     A[1, 2] = A[2, 1] = v10 * e0 * v20 + v11 * e1 * v21 + v12 * e2 * v22
 
 
-@numba.njit(cache=True)
-def clamp_symmetric(A, eigenvalues, eigenvectors):
-    """Replace symmetric ``A`` in place by its projection onto the PSD cone (cyclic Jacobi)."""
-    if A.shape[0] == 3:
-        _clamp_symmetric_3d(A, eigenvalues, eigenvectors)
-    else:
-        _clamp_symmetric_2d(A, eigenvalues, eigenvectors)
-
-
 def _specialised_clamp_symmetric(d: int):
     """:func:`clamp_symmetric` for one dimension: constant loop bounds unroll."""
 
@@ -234,17 +222,21 @@ _clamp_symmetric_2d = _specialised_clamp_symmetric(2)
 _clamp_symmetric_3d = _specialised_clamp_symmetric(3)
 
 
-@numba.njit(cache=True)
-def stress_derivative(model_id, region, sigma, params, work, project, C):
-    """dP/dF as a (d², d²) matrix into ``C`` from the U, V, G and H workspace slots."""
-    if sigma.shape[0] == 3:
-        _stress_derivative_3d(model_id, region, sigma, params, work, project, C)
-    else:
-        _stress_derivative_2d(model_id, region, sigma, params, work, project, C)
+def clamp_symmetric(A, d, eigenvalues, eigenvectors):
+    """Replace symmetric ``A`` in place by its projection onto the PSD cone (cyclic Jacobi).
+
+    ``A`` is ``d×d``, ``d`` a compile-time literal in compiled code.
+    """
+    _CLAMP_SYMMETRIC[d](A, eigenvalues, eigenvectors)
+
+
+_CLAMP_SYMMETRIC = {2: _clamp_symmetric_2d, 3: _clamp_symmetric_3d}
+dispatch_on_dimension(clamp_symmetric, _CLAMP_SYMMETRIC)
 
 
 def _specialised_stress_derivative(d: int):
     """:func:`stress_derivative` compiled for one dimension: constant loop bounds unroll."""
+    clamp = _CLAMP_SYMMETRIC[d]
 
     @numba.njit(cache=True)
     def derivative(model_id, region, sigma, params, work, project, C):
@@ -264,9 +256,7 @@ def _specialised_stress_derivative(d: int):
             for j in range(d):
                 A[i, j] = hessian[i, j]
         if project:
-            clamp_symmetric(
-                A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d)
-            )
+            clamp(A, ws.vector(work, ws.EIGENVALUES, d), ws.matrix(work, ws.EIGENVECTORS, d))
         for m in range(d):
             for alpha in range(n):
                 total = 0.0
@@ -312,6 +302,14 @@ def _specialised_stress_derivative(d: int):
 _stress_derivative_2d = _specialised_stress_derivative(2)
 
 
+def stress_derivative(model_id, region, sigma, d, params, work, project, C):
+    """dP/dF as a (d², d²) matrix into ``C`` from the U, V, G and H workspace slots.
+
+    ``d`` is the length of ``sigma``, a compile-time literal in compiled code.
+    """
+    _STRESS_DERIVATIVE[d](model_id, region, sigma, params, work, project, C)
+
+
 @numba.njit(cache=True)
 def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
     """Write the 3D tangent as C = Σₖ wₖ eₖᵀ over nine modes eₖ of the SVD frame.
@@ -329,7 +327,7 @@ def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
     for i in range(9):
         work[A + i] = work[ws.H + i]
     if project:
-        clamp_symmetric(
+        _clamp_symmetric_3d(
             ws.matrix(work, A, 3),
             ws.vector(work, ws.EIGENVALUES, 3),
             ws.matrix(work, ws.EIGENVECTORS, 3),
@@ -400,3 +398,7 @@ def _pair_slopes(model_id, region, sigma, params, work, project, i, j):
         stretch = max(stretch, 0.0)
         twist = max(twist, 0.0)
     return 0.5 * stretch, 0.5 * twist
+
+
+_STRESS_DERIVATIVE = {2: _stress_derivative_2d, 3: _stress_derivative_3d}
+dispatch_on_dimension(stress_derivative, _STRESS_DERIVATIVE)

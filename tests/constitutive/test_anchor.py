@@ -28,12 +28,12 @@ def test_anchor_contractions_match_full_tensors(rng, model, d):
         Q = np.zeros((d, d, d, d))
         f = np.zeros((d, 5))
         h = np.zeros((d, 5))
-        psi = model_derivatives(instance.model_id, q, params, 4, g, H, T, Q, f, h)
+        psi = model_derivatives(instance.model_id, q, d, params, 4, g, H, T, Q, f, h)
         # NaN everywhere else: a slot the contraction reads but was not given shows up.
         work = np.full(ws.WORKSPACE_SIZE, np.nan)
         work[ws.Q_POINT : ws.Q_POINT + d] = q
         work[ws.A_OFFSET : ws.A_OFFSET + d] = a
-        anchor_psi = model_anchor_derivatives(instance.model_id, q, params, 4, work)
+        anchor_psi = model_anchor_derivatives(instance.model_id, q, d, params, 4, work)
         expected = {
             "psi": np.array([psi]),
             "g": g,

@@ -115,7 +115,7 @@ def test_projection_near_identity_general(rng, model, d):
     assert_rel_close(T1[spd], T0[spd], 1e-10, MU + LAM, f"{model} {d}D near identity")
 
 
-def _fast_path_tangent(material):
+def _fast_path_tangent(material, d):
     """A compiled loop over point_tangent that also reports which points took the SVD."""
     import numba
 
@@ -126,10 +126,10 @@ def _fast_path_tangent(material):
 
     def loop(F, params, positive_only, C, through_svd):
         work = ws.new_workspace(ws.stack_buffer())
-        P = np.empty((F.shape[1], F.shape[1]))
+        P = np.empty((d, d))
         for n in range(F.shape[0]):
             _, _, through_svd[n] = point_tangent(
-                F[n], model_id, extension_id, positive_only, params, True, work, P, C[n]
+                F[n], d, model_id, extension_id, positive_only, params, True, work, P, C[n]
             )
 
     return numba.njit(loop)
@@ -153,7 +153,7 @@ def test_near_rest_projection_skips_the_svd(rng, model, d):
     assert np.mean(w[:, 0] < -1e-8 * np.abs(w).max(axis=1)) > 0.2  # many are indefinite
     projected = np.empty_like(exact)
     through_svd = np.zeros(len(F), dtype=np.bool_)
-    _fast_path_tangent(m)(F, m.parameters, m.positive_only, projected, through_svd)
+    _fast_path_tangent(m, d)(F, m.parameters, m.positive_only, projected, through_svd)
     assert not through_svd.any(), np.flatnonzero(through_svd)
     assert_rel_close(projected, nearest, 1e-12, MU + LAM, f"{model} {d}D fast projection")
     assert_rel_close(m.tangent(F, project=True), nearest, 1e-12, MU + LAM, "batch API")
@@ -179,7 +179,7 @@ def _spectral(model, F, exact, lam=None):
         I1, I2, J = np.trace(C), np.trace(C @ C), np.linalg.det(f)
         _, d1, d2, dJ = module.invariant_terms(I1, I2, J, d, MU, lam)
         curvature = module.invariant_curvature(I1, I2, J, d, MU, lam)
-        codes[n] = spectral_projection(f, J, d1, d2, dJ, *curvature, result[n])
+        codes[n] = spectral_projection(f, d, J, d1, d2, dJ, *curvature, result[n])
     return codes, result
 
 

@@ -79,9 +79,9 @@ def test_every_extension_is_dispatched_to_its_module(extension):
     results = []
     for function in (
         lambda work: principal_derivatives(
-            model.model_id, extension.extension_id, False, sigma, material.parameters, 2, work
+            model.model_id, extension.extension_id, False, sigma, 3, material.parameters, 2, work
         ),
-        lambda work: own(model.model_id, sigma, material.parameters, 2, work),
+        lambda work: own(model.model_id, sigma, 3, material.parameters, 2, work),
     ):
         work = np.zeros(ws.WORKSPACE_SIZE)
         energy, region = function(work)
@@ -92,20 +92,29 @@ def test_every_extension_is_dispatched_to_its_module(extension):
 
 
 def test_a_material_compiles_only_its_own_chain(tmp_path):
-    """Neo-Hookean + C2 compiles Neo-Hookean and C2: no other model's or extension's functions
-    (the ids are compile-time literals, the dispatch an overload resolved while typing)."""
+    """Neo-Hookean + C2 in 3D compiles Neo-Hookean and C2 in 3D: no other model's or
+    extension's functions and no 2D twin (the ids and the dimension are compile-time literals,
+    the dispatch an overload resolved while typing)."""
     script = textwrap.dedent(
         """
         import numpy as np
         import dolfinx_invertible as di
+        from dolfinx_invertible.constitutive import invariants, svd, tangent
         from dolfinx_invertible.constitutive.extensions import c1, c2, ife
-        from dolfinx_invertible.constitutive.models import corotated, neo_hookean, stvk
+        from dolfinx_invertible.constitutive.models import corotated, neo_hookean, separable, stvk
         m = di.Material(di.NeoHookean(mu=1.0, lam=2.0), extension=di.C2())
         F = np.array([np.diag([1.0, 1.0, -0.5]), np.eye(3)])
-        m.energy(F), m.stress(F), m.tangent(F)
-        used = {"neo_hookean": neo_hookean.tables, "c2": c2.c2_derivatives}
+        m.energy(F), m.stress(F), m.tangent(F), m.tangent(F, project=False)
+        used = {"neo_hookean": neo_hookean.tables, "c2": c2._C2_DERIVATIVES[3],
+                "svd": svd._POLAR_SVD[3], "clamp": tangent._CLAMP_SYMMETRIC[3],
+                "invariant tangent": invariants._INVARIANT_TANGENT[3]}
         unused = {"corotated": corotated.tables, "stvk": stvk.tables,
                   "c1": c1.c1_derivatives, "ife": ife.ife_derivatives}
+        twins = (c2._C2_DERIVATIVES, separable._SEPARABLE_DERIVATIVES,
+                 separable._SEPARABLE_ANCHOR, invariants._INVARIANT_TANGENT,
+                 invariants._SPECTRAL_PROJECTION, tangent._STRESS_DERIVATIVE,
+                 tangent._CLAMP_SYMMETRIC, tangent._WORKSPACE_FIRST_PIOLA, svd._POLAR_SVD)
+        unused.update({twin[2].py_func.__qualname__: twin[2] for twin in twins})
         assert all(f.signatures for f in used.values()), used
         compiled = [name for name, f in unused.items() if f.signatures]
         assert not compiled, compiled

@@ -71,12 +71,12 @@ def _product(subset, skip, offsets, d):
 
 
 @numba.njit(cache=True)
-def c1_derivatives(model_id, sigma, params, order, work):
+def c1_derivatives(model_id, sigma, d, params, order, work):
     """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into the G, H slots.
 
-    Returns the energy and the region: the number of singular values below ε.
+    Returns the energy and the region: the number of singular values below ε. ``d`` is the
+    length of ``sigma``, a compile-time literal.
     """
-    d = sigma.shape[0]
     eps = params[2]
     k = params[3]
     below = 0
@@ -93,13 +93,13 @@ def c1_derivatives(model_id, sigma, params, order, work):
             q[i] = sigma[i]
             offsets[i] = 0.0
     if count == 0:
-        return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+        return model_derivatives_into(model_id, sigma, d, params, order, work, ws.G, ws.H), 0
     g = ws.vector(work, ws.MODEL_G, d)
     H = ws.matrix(work, ws.MODEL_H, d)
     T = ws.tensor3(work, ws.MODEL_T, d)
     Q = ws.tensor4(work, ws.MODEL_Q, d)
     psi_q = model_derivatives_into(
-        model_id, q, params, min(count + order, 4), work, ws.MODEL_G, ws.MODEL_H
+        model_id, q, d, params, min(count + order, 4), work, ws.MODEL_G, ws.MODEL_H
     )
     out_g = ws.vector(work, ws.G, d)
     out_H = ws.matrix(work, ws.H, d)

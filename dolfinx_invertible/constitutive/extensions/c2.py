@@ -17,6 +17,7 @@ import numba
 
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.extensions.base import Extension
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.models.registry import (
     model_anchor_derivatives,
     model_derivatives_into,
@@ -48,17 +49,6 @@ def threshold_parameter(a, eps):
     return min(s, 1.0)
 
 
-@numba.njit(cache=True)
-def c2_derivatives(model_id, sigma, params, order, work):
-    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into the G, H slots.
-
-    Returns the energy and the region: 0 on the model, 1 in the extension.
-    """
-    if sigma.shape[0] == 3:
-        return _c2_derivatives_3d(model_id, sigma, params, order, work)
-    return _c2_derivatives_2d(model_id, sigma, params, order, work)
-
-
 def _specialised_c2_derivatives(d: int):
     """Compile :func:`c2_derivatives` for one dimension.
 
@@ -72,7 +62,7 @@ def _specialised_c2_derivatives(d: int):
         for i in range(d):
             J *= sigma[i]
         if J >= eps:
-            return model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H), 0
+            return model_derivatives_into(model_id, sigma, d, params, order, work, ws.G, ws.H), 0
         # Slots are read and written by offset: each array view costs two out-of-line
         # reference-count calls, more than the arithmetic they would serve.
         a = ws.A_OFFSET
@@ -84,7 +74,7 @@ def _specialised_c2_derivatives(d: int):
             work[ws.Q_POINT + i] = 1.0 + s * work[a + i]
         # g, H at q and T[a, ·, ·], T[a, a, ·], Q[a, a, ·, ·]: what the orders below need.
         psi_q = model_anchor_derivatives(
-            model_id, ws.vector(work, ws.Q_POINT, d), params, order + 2, work
+            model_id, ws.vector(work, ws.Q_POINT, d), d, params, order + 2, work
         )
         g = ws.MODEL_G
         H = ws.MODEL_H
@@ -174,8 +164,17 @@ def _specialised_c2_derivatives(d: int):
     return specialised
 
 
-_c2_derivatives_2d = _specialised_c2_derivatives(2)
-_c2_derivatives_3d = _specialised_c2_derivatives(3)
+def c2_derivatives(model_id, sigma, d, params, order, work):
+    """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into the G, H slots.
+
+    Returns the energy and the region: 0 on the model, 1 in the extension. ``d`` is the length
+    of ``sigma``, a compile-time literal in compiled code.
+    """
+    return _C2_DERIVATIVES[d](model_id, sigma, params, order, work)
+
+
+_C2_DERIVATIVES = {d: _specialised_c2_derivatives(d) for d in (2, 3)}
+dispatch_on_dimension(c2_derivatives, _C2_DERIVATIVES)
 
 
 #: The module's entry for the compiled dispatch on the extension id.

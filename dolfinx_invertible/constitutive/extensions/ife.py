@@ -19,18 +19,18 @@ __all__ = ["IFE", "derivatives", "ife_derivatives"]
 
 
 @numba.njit(cache=True)
-def ife_derivatives(model_id, sigma, params, order, work):
+def ife_derivatives(model_id, sigma, d, params, order, work):
     """Diagonal stress into the G slot, clamped Hessian into the H slot; returns (0, region).
 
     The returned "energy" is always 0: IFE defines none (the public API refuses to report one).
+    ``d`` is the length of ``sigma``, a compile-time literal.
     """
-    d = sigma.shape[0]
     eps = params[2]
     J = 1.0
     for i in range(d):
         J *= sigma[i]
     if J >= eps:
-        model_derivatives_into(model_id, sigma, params, order, work, ws.G, ws.H)
+        model_derivatives_into(model_id, sigma, d, params, order, work, ws.G, ws.H)
         return 0.0, 0
     a = ws.vector(work, ws.A_OFFSET, d)
     q = ws.vector(work, ws.Q_POINT, d)
@@ -39,7 +39,7 @@ def ife_derivatives(model_id, sigma, params, order, work):
     s = threshold_parameter(a, eps)
     for i in range(d):
         q[i] = 1.0 + s * a[i]
-    model_derivatives_into(model_id, q, params, max(order, 2), work, ws.MODEL_G, ws.MODEL_H)
+    model_derivatives_into(model_id, q, d, params, max(order, 2), work, ws.MODEL_G, ws.MODEL_H)
     g = ws.vector(work, ws.MODEL_G, d)
     H = ws.matrix(work, ws.MODEL_H, d)
     out_g = ws.vector(work, ws.G, d)

@@ -196,15 +196,16 @@ def _model_uses_second_invariant_compiled(model_id):
 
 
 @numba.njit(cache=True)
-def model_derivatives(model_id, sigma, params, order, g, H, T, Q, f, h):
+def model_derivatives(model_id, sigma, d, params, order, g, H, T, Q, f, h):
     """Ψ̂(σ) of model ``model_id``; derivative tensors up to ``order`` go to g, H, T, Q.
 
-    ``params`` starts with [μ, λ]; ``f`` and ``h`` are ``(d, 5)`` scratch tables, left holding
-    the model's tables at ``sigma`` for :func:`model_gradient_slope`.
+    ``d`` is the length of ``sigma``, a compile-time literal like the id. ``params`` starts
+    with [μ, λ]; ``f`` and ``h`` are ``(d, 5)`` scratch tables, left holding the model's tables
+    at ``sigma`` for :func:`model_gradient_slope`.
     """
     _tables(model_id, sigma, params[0], params[1], f, h)
     c, k1, k2 = _constants(model_id, params[0], params[1])
-    return separable_derivatives(sigma, order, f, h, c, k1, k2, g, H, T, Q)
+    return separable_derivatives(sigma, d, order, f, h, c, k1, k2, g, H, T, Q)
 
 
 @numba.njit(cache=True)
@@ -221,12 +222,12 @@ def model_gradient_slope(model_id, sigma, params, i, j, h):
 
 
 @numba.njit(cache=True)
-def model_derivatives_into(model_id, sigma, params, order, work, gradient_slot, hessian_slot):
+def model_derivatives_into(model_id, sigma, d, params, order, work, gradient_slot, hessian_slot):
     """:func:`model_derivatives` with the gradient and Hessian written to workspace slots."""
-    d = sigma.shape[0]
     return model_derivatives(
         model_id,
         sigma,
+        d,
         params,
         order,
         ws.vector(work, gradient_slot, d),
@@ -239,15 +240,14 @@ def model_derivatives_into(model_id, sigma, params, order, work, gradient_slot, 
 
 
 @numba.njit(cache=True)
-def model_anchor_derivatives(model_id, q, params, order, work):
+def model_anchor_derivatives(model_id, q, d, params, order, work):
     """Ψ̂ at ``q`` (the workspace's Q_POINT) with its derivatives contracted with A_OFFSET.
 
     See :func:`~dolfinx_invertible.constitutive.models.separable.separable_anchor_derivatives`
     for what goes where; the tables at q are left in F_TABLE and H_TABLE.
     """
-    d = q.shape[0]
     mu = params[0]
     lam = params[1]
     _tables(model_id, q, mu, lam, ws.table(work, ws.F_TABLE, d), ws.table(work, ws.H_TABLE, d))
     c, k1, k2 = _constants(model_id, mu, lam)
-    return separable_anchor_derivatives(q, order, c, k1, k2, work)
+    return separable_anchor_derivatives(q, d, order, c, k1, k2, work)

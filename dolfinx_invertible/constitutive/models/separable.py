@@ -16,6 +16,7 @@ from __future__ import annotations
 import numba
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 
 __all__ = [
     "separable_anchor_derivatives",
@@ -67,17 +68,6 @@ def _volume_fourth(sigma, i, j, k, l):
         + volume_derivative(sigma, i, k, l, -1) * volume_derivative(sigma, j, -1, -1, -1)
         + volume_derivative(sigma, j, k, l, -1) * volume_derivative(sigma, i, -1, -1, -1)
     )
-
-
-@numba.njit(cache=True)
-def separable_derivatives(sigma, order, f, h, c, k1, k2, g, H, T, Q):
-    """Ψ̂ and, up to ``order``, its derivative tensors ``g``, ``H``, ``T``, ``Q`` (overwritten).
-
-    Terms whose constant is zero are skipped: most models have either the c or the k terms.
-    """
-    if sigma.shape[0] == 3:
-        return _separable_derivatives_3d(sigma, order, f, h, c, k1, k2, g, H, T, Q)
-    return _separable_derivatives_2d(sigma, order, f, h, c, k1, k2, g, H, T, Q)
 
 
 def _specialised_separable_derivatives(d: int):
@@ -172,8 +162,17 @@ def _specialised_separable_derivatives(d: int):
     return specialised
 
 
-_separable_derivatives_2d = _specialised_separable_derivatives(2)
-_separable_derivatives_3d = _specialised_separable_derivatives(3)
+def separable_derivatives(sigma, d, order, f, h, c, k1, k2, g, H, T, Q):
+    """Ψ̂ and, up to ``order``, its derivative tensors ``g``, ``H``, ``T``, ``Q`` (overwritten).
+
+    Terms whose constant is zero are skipped: most models have either the c or the k terms.
+    ``d`` is the length of ``sigma``, a compile-time literal in compiled code.
+    """
+    return _SEPARABLE_DERIVATIVES[d](sigma, order, f, h, c, k1, k2, g, H, T, Q)
+
+
+_SEPARABLE_DERIVATIVES = {d: _specialised_separable_derivatives(d) for d in (2, 3)}
+dispatch_on_dimension(separable_derivatives, _SEPARABLE_DERIVATIVES)
 
 
 @numba.njit(cache=True)
@@ -218,22 +217,6 @@ def _volume_second(q0, q1, q2, d, i, j):
     if other == 1:
         return q1
     return q2
-
-
-@numba.njit(cache=True)
-def separable_anchor_derivatives(q, order, c, k1, k2, work):
-    """Ψ̂(q) with g, H and the contractions of the third and fourth derivatives with a.
-
-    An extension evaluated at an anchor q only needs T[a, ·, ·] and Q[a, a, ·, ·] for the
-    offset a of its segment, which the separable form gives directly, without the d³ and d⁴
-    tensors of :func:`separable_derivatives`. Everything is read from and written to ``work``
-    by offset (slots Q_POINT, A_OFFSET, F_TABLE, H_TABLE in; MODEL_G, MODEL_H, T1, T2, Q2 out):
-    each array view costs two out-of-line reference-count calls, more than the arithmetic.
-    Up to ``order`` (≤ 4): g at 1, H at 2, T[a, ·, ·] and T[a, a, ·] at 3, Q[a, a, ·, ·] at 4.
-    """
-    if q.shape[0] == 3:
-        return _separable_anchor_3d(order, c, k1, k2, work)
-    return _separable_anchor_2d(order, c, k1, k2, work)
 
 
 def _specialised_separable_anchor(d: int):
@@ -362,5 +345,18 @@ def _specialised_separable_anchor(d: int):
     return specialised
 
 
-_separable_anchor_2d = _specialised_separable_anchor(2)
-_separable_anchor_3d = _specialised_separable_anchor(3)
+def separable_anchor_derivatives(q, d, order, c, k1, k2, work):
+    """Ψ̂(q) with g, H and the contractions of the third and fourth derivatives with a.
+
+    An extension evaluated at an anchor q only needs T[a, ·, ·] and Q[a, a, ·, ·] for the
+    offset a of its segment, which the separable form gives directly, without the d³ and d⁴
+    tensors of :func:`separable_derivatives`. Everything is read from and written to ``work``
+    by offset (slots Q_POINT, A_OFFSET, F_TABLE, H_TABLE in; MODEL_G, MODEL_H, T1, T2, Q2 out):
+    each array view costs two out-of-line reference-count calls, more than the arithmetic.
+    Up to ``order`` (≤ 4): g at 1, H at 2, T[a, ·, ·] and T[a, a, ·] at 3, Q[a, a, ·, ·] at 4.
+    """
+    return _SEPARABLE_ANCHOR[d](order, c, k1, k2, work)
+
+
+_SEPARABLE_ANCHOR = {d: _specialised_separable_anchor(d) for d in (2, 3)}
+dispatch_on_dimension(separable_anchor_derivatives, _SEPARABLE_ANCHOR)

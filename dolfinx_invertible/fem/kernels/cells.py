@@ -125,7 +125,9 @@ def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
         scale = point_geometry(
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
-        psi, _, through_svd = point_energy(F, model_id, extension_id, positive_only, params, work)
+        psi, _, through_svd = point_energy(
+            F, d, model_id, extension_id, positive_only, params, work
+        )
         svd_points += through_svd
         total += scale * psi
     A_[0] += total
@@ -168,7 +170,9 @@ def _residual_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes,
         scale = c[WEIGHTS_START + q] * determinant
         basis = numba.carray(ws.address(c, start + q * nodes * d), nodes * d)
         reference_deformation(displacement, basis, inverse, F, nodes, d)
-        _, _, through_svd = point_stress(F, model_id, extension_id, positive_only, params, work, P)
+        _, _, through_svd = point_stress(
+            F, d, model_id, extension_id, positive_only, params, work, P
+        )
         svd_points += through_svd
         for i in range(d):
             for r in range(d):
@@ -241,7 +245,7 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
         _, _, through_svd = point_tangent(
-            F, model_id, extension_id, positive_only, params, project, work, P, C
+            F, d, model_id, extension_id, positive_only, params, project, work, P, C
         )
         svd_points += through_svd
         for row in range(n):
