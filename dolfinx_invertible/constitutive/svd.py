@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
-from dolfinx_invertible.constitutive.symmetric3 import cross, dot, largest_cubic_root, null_vector
+from dolfinx_invertible.constitutive.symmetric3 import angle, cross, dot, null_vector, spread
 
 __all__ = ["polar_svd", "polar_svd_point"]
 
@@ -141,14 +141,7 @@ def _warm_start(w0, w1, w2):
     a01 = dot(w0, w1)
     a02 = dot(w0, w2)
     a12 = dot(w1, w2)
-    # A = q I + p B with tr B = 0 and tr B² = 6: eigenvalues q + 2p cos θ_k, cos 3θ_k = det(B)/2.
-    q = (a00 + a11 + a22) * (1.0 / 3.0)
-    b00 = a00 - q
-    b11 = a11 - q
-    b22 = a22 - q
-    p2 = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) * (
-        1.0 / 6.0
-    )
+    q, p2, b00, b11, b22 = spread(a00, a11, a22, a01, a02, a12)
     identity = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
     if not p2 > _ISOTROPIC_TOLERANCE * q * q:
         return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY
@@ -168,20 +161,8 @@ def _warm_start(w0, w1, w2):
         elif coupled12:
             w1, w2, v1, v2, _ = _jacobi_pair(w1, w2, v1, v2)
         return w0, w1, w2, v0, v1, v2, START_ONE_PAIR
-    p = np.sqrt(p2)
-    det_pb = (
-        b00 * (b11 * b22 - a12 * a12)
-        - a01 * (a01 * b22 - a12 * a02)
-        + a02 * (a01 * a12 - b11 * a02)
-    )
-    r = 0.5 * det_pb / (p2 * p)
-    # With r = cos 3θ ≥ 0 and c = cos θ the largest root, the roots are c (the largest
-    # eigenvalue) and −(c ± √3 sin θ)/2, the smallest with +; for r < 0 all three negate. sin θ
-    # from sin 3θ = sin θ (4c² − 1), with 1 − r² in factored form.
-    sign = np.copysign(1.0, r)
-    ar = min(1.0, abs(r))
-    c = largest_cubic_root(ar)
-    s = np.sqrt((1.0 - ar) * (1.0 + ar)) / (4.0 * c * c - 1.0)
+    # The roots are sign·c (the end farthest from the middle) and −sign·(c ± √3 sin θ)/2.
+    p, sign, c, s = angle(b00, b11, b22, a01, a02, a12, p2)
     x, nx = null_vector(a00, a11, a22, a01, a02, a12, q + sign * (2.0 * p) * c)
     if not nx > 0.0:
         return w0, w1, w2, identity[0], identity[1], identity[2], START_IDENTITY

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cross", "dot", "eigenvalues", "largest_cubic_root", "null_vector"]
+__all__ = ["angle", "cross", "dot", "eigenvalues", "largest_cubic_root", "null_vector", "spread"]
 
 _SQRT3 = 1.7320508075688772
 
@@ -53,13 +53,8 @@ def largest_cubic_root(r):
 
 
 @numba.njit(cache=True)
-def eigenvalues(a00, a11, a22, a01, a02, a12):
-    """Return the eigenvalues of a symmetric 3×3 matrix, largest first (trigonometric formula).
-
-    A = q I + p B with tr B = 0 and tr B² = 6 has the eigenvalues q + 2p cos θₖ, cos 3θₖ =
-    det(B)/2. Each is within a few ulps of ‖A‖ of the exact one (absolute, not relative: a small
-    eigenvalue of a matrix with a large one loses its relative accuracy).
-    """
+def spread(a00, a11, a22, a01, a02, a12):
+    """Return (q, p², B's diagonal) with A = q I + p B, tr B = 0 and tr B² = 6."""
     q = (a00 + a11 + a22) * (1.0 / 3.0)
     b00 = a00 - q
     b11 = a11 - q
@@ -67,8 +62,17 @@ def eigenvalues(a00, a11, a22, a01, a02, a12):
     p2 = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) * (
         1.0 / 6.0
     )
-    if not p2 > 0.0:
-        return q, q, q
+    return q, p2, b00, b11, b22
+
+
+@numba.njit(cache=True)
+def angle(b00, b11, b22, a01, a02, a12, p2):
+    """Return (p, sign, c, s) of the trigonometric formula for the eigenvalues (p² > 0).
+
+    The eigenvalues are q + 2p cos θₖ with cos 3θₖ = r = det(B)/2. With c = cos θ the largest
+    root for |r| and s = sin θ, the offsets are sign·2c (the end of the spectrum farthest from
+    the middle) and sign·(−c ± √3 s); sin θ from sin 3θ = sin θ (4c² − 1), 1 − r² factored.
+    """
     p = np.sqrt(p2)
     det_pb = (
         b00 * (b11 * b22 - a12 * a12)
@@ -76,12 +80,25 @@ def eigenvalues(a00, a11, a22, a01, a02, a12):
         + a02 * (a01 * a12 - b11 * a02)
     )
     r = 0.5 * det_pb / (p2 * p)
-    # With r = cos 3θ ≥ 0 and c = cos θ the largest root, the offsets are 2c and −c ± √3 sin θ;
-    # for r < 0 all three negate. sin θ from sin 3θ = sin θ (4c² − 1).
+    sign = np.copysign(1.0, r)
     ar = min(1.0, abs(r))
     c = largest_cubic_root(ar)
     s = np.sqrt((1.0 - ar) * (1.0 + ar)) / (4.0 * c * c - 1.0)
-    if r >= 0.0:
+    return p, sign, c, s
+
+
+@numba.njit(cache=True)
+def eigenvalues(a00, a11, a22, a01, a02, a12):
+    """Return the eigenvalues of a symmetric 3×3 matrix, largest first (trigonometric formula).
+
+    Each is within a few ulps of ‖A‖ of the exact one (absolute, not relative: a small
+    eigenvalue of a matrix with a large one loses its relative accuracy).
+    """
+    q, p2, b00, b11, b22 = spread(a00, a11, a22, a01, a02, a12)
+    if not p2 > 0.0:
+        return q, q, q
+    p, sign, c, s = angle(b00, b11, b22, a01, a02, a12, p2)
+    if sign > 0.0:
         return q + 2.0 * p * c, q - p * (c - _SQRT3 * s), q - p * (c + _SQRT3 * s)
     return q + p * (c + _SQRT3 * s), q + p * (c - _SQRT3 * s), q - 2.0 * p * c
 
