@@ -28,25 +28,12 @@ from dolfinx_invertible.constitutive.principal import (
 
 __all__ = [
     "clamp_symmetric",
-    "first_piola",
     "project_symmetric_3",
     "stress_derivative",
     "workspace_first_piola",
 ]
 
 _MAX_EIGEN_SWEEPS = 30
-
-
-@numba.njit(cache=True)
-def first_piola(U, g, V, P):
-    """P = U diag(g) Vᵀ."""
-    d = g.shape[0]
-    for i in range(d):
-        for j in range(d):
-            total = 0.0
-            for m in range(d):
-                total += U[i, m] * g[m] * V[j, m]
-            P[i, j] = total
 
 
 def _specialised_workspace_first_piola(d: int):
@@ -67,8 +54,8 @@ def _specialised_workspace_first_piola(d: int):
 def workspace_first_piola(work, P, d):
     """P = U diag(g) Vᵀ from the U, G and V workspace slots, read by offset.
 
-    The same as :func:`first_piola` without the three views, whose reference counting costs
-    about as much as the product. ``P`` is ``d×d``, ``d`` a compile-time literal.
+    Read by offset rather than through three views, whose reference counting costs about as
+    much as the product. ``P`` is ``d×d``, ``d`` a compile-time literal.
     """
     _WORKSPACE_FIRST_PIOLA[d](work, P)
 
