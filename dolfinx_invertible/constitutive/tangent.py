@@ -297,6 +297,11 @@ def stress_derivative(model_id, region, sigma, d, params, work, project, C):
     _STRESS_DERIVATIVE[d](model_id, region, sigma, params, work, project, C)
 
 
+# The pair indices as run-time integers: literal ones would make numba compile the slope chain
+# (down to the model's volume derivatives) once per pair.
+_FIRST, _SECOND, _THIRD = np.arange(3)
+
+
 @numba.njit(cache=True)
 def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
     """Write the 3D tangent as C = Σₖ wₖ eₖᵀ over nine modes eₖ of the SVD frame.
@@ -320,9 +325,15 @@ def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
             ws.matrix(work, ws.EIGENVECTORS, 3),
         )
     # The slopes first: on the model they call into the model with array arguments.
-    stretch01, twist01 = _pair_slopes(model_id, region, sigma, params, work, project, 0, 1)
-    stretch02, twist02 = _pair_slopes(model_id, region, sigma, params, work, project, 0, 2)
-    stretch12, twist12 = _pair_slopes(model_id, region, sigma, params, work, project, 1, 2)
+    stretch01, twist01 = _pair_slopes(
+        model_id, region, sigma, params, work, project, _FIRST, _SECOND
+    )
+    stretch02, twist02 = _pair_slopes(
+        model_id, region, sigma, params, work, project, _FIRST, _THIRD
+    )
+    stretch12, twist12 = _pair_slopes(
+        model_id, region, sigma, params, work, project, _SECOND, _THIRD
+    )
     # Rows 0–8 the modes, rows 9–17 their weights.
     table = numba.carray(ws.stack_array(162), (18, 9))
     for m in range(3):

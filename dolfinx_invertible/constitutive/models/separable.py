@@ -14,6 +14,7 @@ aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ) of the stress derivative's off-diago
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
@@ -24,6 +25,11 @@ __all__ = [
     "separable_gradient_slope",
     "volume_derivative",
 ]
+
+
+# The unused index as a run-time integer: a literal −1 would make numba compile
+# volume_derivative once for every pattern of literal arguments.
+_UNUSED = np.array([-1])[0]
 
 
 @numba.njit(cache=True)
@@ -51,22 +57,32 @@ def volume_derivative(sigma, i, j, k, l):
 def _volume_third(sigma, i, j, k):
     """Third derivative of K(J) = k₂/2 (J − 1)² + k₁ (J − 1), without the constants."""
     return (
-        volume_derivative(sigma, i, j, -1, -1) * volume_derivative(sigma, k, -1, -1, -1)
-        + volume_derivative(sigma, i, k, -1, -1) * volume_derivative(sigma, j, -1, -1, -1)
-        + volume_derivative(sigma, j, k, -1, -1) * volume_derivative(sigma, i, -1, -1, -1)
+        volume_derivative(sigma, i, j, _UNUSED, _UNUSED)
+        * volume_derivative(sigma, k, _UNUSED, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, i, k, _UNUSED, _UNUSED)
+        * volume_derivative(sigma, j, _UNUSED, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, j, k, _UNUSED, _UNUSED)
+        * volume_derivative(sigma, i, _UNUSED, _UNUSED, _UNUSED)
     )
 
 
 @numba.njit(cache=True)
 def _volume_fourth(sigma, i, j, k, l):
     return (
-        volume_derivative(sigma, i, j, -1, -1) * volume_derivative(sigma, k, l, -1, -1)
-        + volume_derivative(sigma, i, k, -1, -1) * volume_derivative(sigma, j, l, -1, -1)
-        + volume_derivative(sigma, i, l, -1, -1) * volume_derivative(sigma, j, k, -1, -1)
-        + volume_derivative(sigma, i, j, k, -1) * volume_derivative(sigma, l, -1, -1, -1)
-        + volume_derivative(sigma, i, j, l, -1) * volume_derivative(sigma, k, -1, -1, -1)
-        + volume_derivative(sigma, i, k, l, -1) * volume_derivative(sigma, j, -1, -1, -1)
-        + volume_derivative(sigma, j, k, l, -1) * volume_derivative(sigma, i, -1, -1, -1)
+        volume_derivative(sigma, i, j, _UNUSED, _UNUSED)
+        * volume_derivative(sigma, k, l, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, i, k, _UNUSED, _UNUSED)
+        * volume_derivative(sigma, j, l, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, i, l, _UNUSED, _UNUSED)
+        * volume_derivative(sigma, j, k, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, i, j, k, _UNUSED)
+        * volume_derivative(sigma, l, _UNUSED, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, i, j, l, _UNUSED)
+        * volume_derivative(sigma, k, _UNUSED, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, i, k, l, _UNUSED)
+        * volume_derivative(sigma, j, _UNUSED, _UNUSED, _UNUSED)
+        + volume_derivative(sigma, j, k, l, _UNUSED)
+        * volume_derivative(sigma, i, _UNUSED, _UNUSED, _UNUSED)
     )
 
 
@@ -94,16 +110,18 @@ def _specialised_separable_derivatives(d: int):
         for i in range(d):
             g[i] = f[i, 1] + c * S * h[i, 1]
             if has_volume:
-                g[i] += dK * volume_derivative(sigma, i, -1, -1, -1)
+                g[i] += dK * volume_derivative(sigma, i, _UNUSED, _UNUSED, _UNUSED)
         if order < 2:
             return psi
         for i in range(d):
             for j in range(d):
                 value = c * h[i, 1] * h[j, 1]
                 if has_volume:
-                    value += k2 * volume_derivative(sigma, i, -1, -1, -1) * volume_derivative(
-                        sigma, j, -1, -1, -1
-                    ) + dK * volume_derivative(sigma, i, j, -1, -1)
+                    value += k2 * volume_derivative(
+                        sigma, i, _UNUSED, _UNUSED, _UNUSED
+                    ) * volume_derivative(
+                        sigma, j, _UNUSED, _UNUSED, _UNUSED
+                    ) + dK * volume_derivative(sigma, i, j, _UNUSED, _UNUSED)
                 if i == j:
                     value += f[i, 2] + c * S * h[i, 2]
                 H[i, j] = value
@@ -115,7 +133,7 @@ def _specialised_separable_derivatives(d: int):
                     value = 0.0
                     if has_volume:
                         value += k2 * _volume_third(sigma, i, j, k) + dK * volume_derivative(
-                            sigma, i, j, k, -1
+                            sigma, i, j, k, _UNUSED
                         )
                     if has_sum:
                         if i == j:
@@ -189,7 +207,7 @@ def separable_gradient_slope(sigma, i, j, f_slope, h_slope, c, k1, k2, h):
         S += h[m, 0]
         J *= sigma[m]
     dK = k1 + k2 * (J - 1.0)
-    return f_slope + c * S * h_slope - dK * volume_derivative(sigma, i, j, -1, -1)
+    return f_slope + c * S * h_slope - dK * volume_derivative(sigma, i, j, _UNUSED, _UNUSED)
 
 
 @numba.njit(cache=True)

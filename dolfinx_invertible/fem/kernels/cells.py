@@ -31,6 +31,7 @@ loops could not be specialised. The residual also has quadrature loops for const
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
@@ -61,6 +62,12 @@ from dolfinx_invertible.fem.kernels.geometry import (
 )
 
 __all__ = ["cell_energy", "cell_residual", "cell_tangent"]
+
+# Each kernel's counter field as a run-time integer: a literal one would make numba compile
+# count_points once per kernel.
+_ENERGY_FIELD, _RESIDUAL_FIELD, _TANGENT_FIELD = np.array(
+    [ENERGY_COUNTS, RESIDUAL_COUNTS, TANGENT_COUNTS]
+)
 
 # Kernel scratch on the stack (never zeroed: every entry is written before it is read):
 # basis gradients (nodes × d), geometry Jacobian, F, P, dP/dF (d² × d²) and dP/dF contracted
@@ -131,7 +138,7 @@ def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
         svd_points += through_svd
         total += scale * psi
     A_[0] += total
-    count_points(c, ENERGY_COUNTS, points, svd_points)
+    count_points(c, _ENERGY_FIELD, points, svd_points)
 
 
 @numba.njit(cache=True, forceinline=True)
@@ -215,7 +222,7 @@ def cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id):
         points, svd_points = _residual_points(
             A_, c_, w_, coordinates_, d, model_id, extension_id, nodes, geometry_nodes
         )
-    count_points(header, RESIDUAL_COUNTS, points, svd_points)
+    count_points(header, _RESIDUAL_FIELD, points, svd_points)
 
 
 @numba.njit(cache=True)
@@ -269,4 +276,4 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
             for i in range(d):
                 for k in range(d):
                     A[b * d + k, a * d + i] = A[a * d + i, b * d + k]
-    count_points(c, TANGENT_COUNTS, points, svd_points)
+    count_points(c, _TANGENT_FIELD, points, svd_points)
