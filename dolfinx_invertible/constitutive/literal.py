@@ -24,10 +24,21 @@ import functools
 import inspect
 
 import numba
+import numpy as np
 from numba.core import types
 from numba.extending import overload
 
-__all__ = ["dispatch_on_dimension", "force_literal", "literal_id"]
+__all__ = ["dispatch_on_dimension", "force_literal", "literal_id", "run_time_integers"]
+
+
+def run_time_integers(*values: int) -> tuple:
+    """Return the integers as NumPy scalars, which numba types as run-time ``int64``.
+
+    A Python ``int`` constant passed to a compiled function is typed as a literal, so numba
+    compiles the callee (and its whole chain) once per value. Integers that only index or select
+    at run time (pair indices, derivative orders, counter fields) are passed as these instead.
+    """
+    return tuple(np.array(values, dtype=np.int64))
 
 
 def literal_id(selector) -> int | None:

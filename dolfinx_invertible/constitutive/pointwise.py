@@ -19,6 +19,7 @@ from dolfinx_invertible.constitutive.invariants import (
     invariant_tangent,
     invariants,
 )
+from dolfinx_invertible.constitutive.literal import run_time_integers
 from dolfinx_invertible.constitutive.principal import (
     OVERFLOW_REGION,
     UNDEFINED_REGION,
@@ -45,9 +46,7 @@ _SAFE_PARAMETER = 1e100
 
 # Derivative orders as runtime integers: a literal argument would make numba compile the whole
 # call chain once per order value, tripling the cold compile time for no measurable speed.
-_ENERGY = np.array([0])[0]
-_STRESS = np.array([1])[0]
-_TANGENT = np.array([2])[0]
+_ENERGY, _STRESS, _TANGENT = run_time_integers(0, 1, 2)
 
 
 @numba.njit(cache=True)

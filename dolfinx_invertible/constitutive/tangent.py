@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension, run_time_integers
 from dolfinx_invertible.constitutive.principal import (
     gradient_slope,
     quotient_slope,
@@ -297,9 +297,9 @@ def stress_derivative(model_id, region, sigma, d, params, work, project, C):
     _STRESS_DERIVATIVE[d](model_id, region, sigma, params, work, project, C)
 
 
-# The pair indices as run-time integers: literal ones would make numba compile the slope chain
-# (down to the model's volume derivatives) once per pair.
-_FIRST, _SECOND, _THIRD = np.arange(3)
+# The pair indices, not literals: the slope chain (down to the model's volume derivatives)
+# compiles once, not once per pair.
+_FIRST, _SECOND, _THIRD = run_time_integers(0, 1, 2)
 
 
 @numba.njit(cache=True)

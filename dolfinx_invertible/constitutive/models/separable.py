@@ -14,10 +14,9 @@ aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ) of the stress derivative's off-diago
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
+from dolfinx_invertible.constitutive.literal import dispatch_on_dimension, run_time_integers
 
 __all__ = [
     "separable_anchor_derivatives",
@@ -27,9 +26,8 @@ __all__ = [
 ]
 
 
-# The unused index as a run-time integer: a literal −1 would make numba compile
-# volume_derivative once for every pattern of literal arguments.
-_UNUSED = np.array([-1])[0]
+# The unused index, not a literal: volume_derivative compiles once, not per argument pattern.
+(_UNUSED,) = run_time_integers(-1)
 
 
 @numba.njit(cache=True)

@@ -31,9 +31,9 @@ loops could not be specialised. The residual also has quadrature loops for const
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.literal import run_time_integers
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
 from dolfinx_invertible.fem.kernels.constants import (
     DERIVED_STIFFNESS,
@@ -63,10 +63,9 @@ from dolfinx_invertible.fem.kernels.geometry import (
 
 __all__ = ["cell_energy", "cell_residual", "cell_tangent"]
 
-# Each kernel's counter field as a run-time integer: a literal one would make numba compile
-# count_points once per kernel.
-_ENERGY_FIELD, _RESIDUAL_FIELD, _TANGENT_FIELD = np.array(
-    [ENERGY_COUNTS, RESIDUAL_COUNTS, TANGENT_COUNTS]
+# The counter fields, not literals: count_points compiles once, not once per kernel.
+_ENERGY_FIELD, _RESIDUAL_FIELD, _TANGENT_FIELD = run_time_integers(
+    ENERGY_COUNTS, RESIDUAL_COUNTS, TANGENT_COUNTS
 )
 
 # Kernel scratch on the stack (never zeroed: every entry is written before it is read):
