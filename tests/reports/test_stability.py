@@ -171,7 +171,7 @@ def test_quick_report_from_the_command_line(tmp_path):
         + ["--out", str(out), "--quiet"],
         capture_output=True,
         text=True,
-        timeout=900,
+        timeout=1800,
         env=environment,
         cwd=tmp_path,
     )
