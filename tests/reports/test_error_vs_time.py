@@ -1,11 +1,11 @@
 """``report error-vs-time --quick`` from the command line: its CSV, its orders, its summary.
 
-The report runs once (a child process of the command line: two minutes on one machine, nine on
-one half as fast with both cores to itself, over ten beside another test worker); the tests
-read what it wrote and check it against the plan and against each other: one row per planned
-run, finite orders, cheapest runs that are the cheapest rows of the CSV, and facts that must
-hold whatever the timings (the same discrete problem assembled two ways gives the same error;
-BDF2 is more accurate than backward Euler at the same step).
+The report runs once, a child process of the command line: two minutes on one machine, 14 on
+a slower one that also ran it past 10 minutes beside another test worker. The tests read what
+it wrote and check it against the plan and against each other: one row per planned run, finite
+orders, cheapest runs that are the cheapest rows of the CSV, and facts that must hold whatever
+the timings (the same discrete problem assembled two ways gives the same error; BDF2 is more
+accurate than backward Euler at the same step).
 """
 
 from __future__ import annotations
