@@ -2,11 +2,34 @@
 
 Under MPI (more than one rank) only the tests marked ``mpi`` are collected: the others check
 nothing that a parallel run would add, and deselecting them keeps the parallel report short.
+
+``--chains covering`` (the compat lanes of other DOLFINx and numba versions,
+docs/compatibility.md) runs each test parametrised over the models and the extensions on a
+covering subset of its pairs: every model and every extension at least once, every other
+parameter (the dimension, the cases) in full. Each (model, extension, dimension) is its own
+compiled chain, so the full matrix, which the host lane runs, costs a lane most of its time in
+compilation without exercising code that the covering subset leaves out.
 """
 
+import collections
 import os
 
 import pytest
+
+#: The parameter names under which the tests receive a model and an extension.
+_MODEL_PARAMETERS = ("model",)
+_EXTENSION_PARAMETERS = ("ext", "extension")
+
+
+def pytest_addoption(parser):
+    """Add ``--chains``: ``all`` model × extension pairs (default) or a ``covering`` subset."""
+    parser.addoption(
+        "--chains",
+        choices=("all", "covering"),
+        default="all",
+        help="run the tests parametrised over models and extensions on all pairs (default) or "
+        "on a covering subset: every model and every extension at least once",
+    )
 
 
 def pytest_configure(config):
@@ -34,12 +57,73 @@ def _comm_size() -> int:
     return MPI.COMM_WORLD.size
 
 
+def _parameter(item, names):
+    """Return (found, value) of the first of ``names`` the item is parametrised over."""
+    parameters = getattr(getattr(item, "callspec", None), "params", {})
+    for name in names:
+        if name in parameters:
+            return True, parameters[name]
+    return False, None
+
+
+def _in_covering_subset(items) -> list[bool]:
+    """Whether each item is in the covering subset of its test's model × extension pairs.
+
+    With the models and the extensions numbered in the order first collected, model i goes
+    with extension i mod (number of extensions), the same pairs in every test; a test without
+    that extension takes its own extension i mod (its number of extensions) instead. A test
+    over the models alone runs one of them, a different one from test to test.
+    """
+    models: list = []
+    extensions: list = []
+    own_extensions = collections.defaultdict(list)
+    for item in items:
+        has_model, model = _parameter(item, _MODEL_PARAMETERS)
+        has_extension, extension = _parameter(item, _EXTENSION_PARAMETERS)
+        if has_model and model not in models:
+            models.append(model)
+        if has_extension:
+            if extension not in extensions:
+                extensions.append(extension)
+            own = own_extensions[_function(item)]
+            if extension not in own:
+                own.append(extension)
+    functions = list(dict.fromkeys(_function(item) for item in items))
+    keep = []
+    for item in items:
+        has_model, model = _parameter(item, _MODEL_PARAMETERS)
+        has_extension, extension = _parameter(item, _EXTENSION_PARAMETERS)
+        if not has_model:
+            keep.append(True)
+        elif not has_extension:
+            keep.append(models.index(model) == functions.index(_function(item)) % len(models))
+        else:
+            i = models.index(model)
+            own = own_extensions[_function(item)]
+            partner = extensions[i % len(extensions)]
+            if partner not in own:
+                partner = own[i % len(own)]
+            keep.append(extension == partner)
+    return keep
+
+
+def _function(item) -> str:
+    """The test function's node id, without its parameters."""
+    return item.nodeid.split("[")[0]
+
+
 def pytest_collection_modifyitems(config, items):
-    """Deselect the tests not marked ``mpi`` when running on more than one rank."""
-    if _comm_size() <= 1:
-        return
-    selected = [item for item in items if item.get_closest_marker("mpi") is not None]
-    deselected = [item for item in items if item.get_closest_marker("mpi") is None]
+    """Deselect the tests not marked ``mpi`` under MPI, and the pairs ``--chains`` leaves out."""
+    keep = [True] * len(items)
+    if config.getoption("chains") == "covering":
+        keep = _in_covering_subset(items)
+    if _comm_size() > 1:
+        keep = [
+            k and item.get_closest_marker("mpi") is not None
+            for item, k in zip(items, keep, strict=True)
+        ]
+    selected = [item for item, k in zip(items, keep, strict=True) if k]
+    deselected = [item for item, k in zip(items, keep, strict=True) if not k]
     if deselected:
         config.hook.pytest_deselected(items=deselected)
         items[:] = selected

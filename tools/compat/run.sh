@@ -80,9 +80,10 @@ run_pytest() {
       ;;
     trixie | wheel)
       local python=/usr/bin/python3 lane_env=()
-      # The report studies run scenes that the scene tests cover already, for minutes: leave
-      # them to the host lane.
-      flags+=(-m "not study")
+      # The report studies run scenes that the scene tests cover already, for minutes, and the
+      # full model x extension matrix is mostly compilation: leave both to the host lane, run
+      # every model and every extension at least once here (tests/conftest.py).
+      flags+=(-m "not study" --chains covering)
       if [ "$lane" = wheel ]; then
         python=$wheel_venv/bin/python
         # The venv as if activated: the wheel brings its own MPICH, so its mpiexec/mpirun (also
