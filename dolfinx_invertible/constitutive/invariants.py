@@ -30,6 +30,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.extensions.registry import C1_ID, C2_ID, IFE_ID
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.models.registry import (
@@ -49,7 +50,7 @@ __all__ = [
 ]
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariants(F, model_id, extension_id):
     """(I₁, I₂, J) of C = FᵀF; I₂ only where the model or the extension's test needs it (else 0).
 
@@ -79,7 +80,7 @@ def invariants(F, model_id, extension_id):
     return I1, I2, J
 
 
-@numba.njit(cache=True)
+@compiled_only
 def extension_inactive(extension_id, positive_only, I1, I2, J, d, params):
     """Return True where the (extended) energy equals the model itself, decided without an SVD.
 
@@ -97,7 +98,7 @@ def extension_inactive(extension_id, positive_only, I1, I2, J, d, params):
     return True
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariant_energy(F, I1, I2, J, model_id, extension_id, positive_only, params):
     """(done, Ψ, region): ``done`` is False when the SVD path is needed."""
     d = F.shape[0]
@@ -109,7 +110,7 @@ def invariant_energy(F, I1, I2, J, model_id, extension_id, positive_only, params
     return available, psi, 0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariant_stress(F, I1, I2, J, model_id, extension_id, positive_only, params, P):
     """(done, Ψ, region) with P written when ``done``; False when the SVD path is needed."""
     d = F.shape[0]
@@ -150,7 +151,7 @@ def invariant_stress(F, I1, I2, J, model_id, extension_id, positive_only, params
     return True, psi, 0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _cofactor(F, i, j):
     d = F.shape[0]
     if d == 2:
@@ -177,7 +178,7 @@ _CONDITION_FLOOR = 1e-2
 SPECTRAL_NEEDS_SVD = -1
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _polar_rotation_3d(F, R):
     """R of the polar decomposition F = R S (det F > 0) by Newton's iteration R ← (R + R⁻ᵀ)/2.
 
@@ -225,7 +226,7 @@ def _polar_rotation_3d(F, R):
     return False
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _positive_definite_3(a00, a11, a22, a01, a02, a12):
     """Leading minors of a symmetric 3×3 matrix (given by its six entries) all positive."""
     if not a00 > 0.0:
@@ -242,7 +243,7 @@ def _specialised_spectral_projection(d: int):
     """:func:`spectral_projection` for one dimension: constant loop bounds unroll."""
     n = d * d
 
-    @numba.njit(cache=True)
+    @compiled_only
     def projection(F, J, d1, d2, dJ, c11, c22, cJJ, c12, c1J, c2J, C):
         # σ from the eigenvalues of FᵀF; the smallest, signed, as J over the others.
         a00 = 0.0
@@ -467,7 +468,7 @@ def _specialised_invariant_tangent(d: int):
     # This dimension's projection itself: the closure's d is a constant, so no dispatch.
     projection = _spectral_projection_3d if d == 3 else _spectral_projection_2d
 
-    @numba.njit(cache=True)
+    @compiled_only
     def tangent(F, I1, I2, J, model_id, extension_id, positive_only, params, project, P, C):
         if not extension_inactive(extension_id, positive_only, I1, I2, J, d, params):
             return False, 0.0, 0

@@ -13,6 +13,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.invariants import (
     invariant_energy,
     invariant_stress,
@@ -49,7 +50,7 @@ _SAFE_PARAMETER = 1e100
 _ENERGY, _STRESS, _TANGENT = run_time_integers(0, 1, 2)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _through_svd(F, d, model_id, extension_id, positive_only, params, order, work):
     """Take the SVD path; return (Ψ, region).
 
@@ -63,7 +64,7 @@ def _through_svd(F, d, model_id, extension_id, positive_only, params, order, wor
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _extreme(I1, J, params):
     """F or the parameters so large (or J so small) that some intermediate may overflow.
 
@@ -77,13 +78,13 @@ def _extreme(I1, J, params):
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _overflowed(I1, J):
     """|F|² or det F beyond the largest double: nothing about the point can be computed."""
     return not (I1 < np.inf and abs(J) < np.inf)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _finite(M):
     """All entries of the matrix finite."""
     total = 0.0
@@ -95,7 +96,7 @@ def _finite(M):
     return total == 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def point_energy(F, d, model_id, extension_id, positive_only, params, work):
     """Return (Ψ(F), region, through_svd).
 
@@ -120,7 +121,7 @@ def point_energy(F, d, model_id, extension_id, positive_only, params, work):
     return psi, region, through_svd
 
 
-@numba.njit(cache=True)
+@compiled_only
 def point_stress(F, d, model_id, extension_id, positive_only, params, work, P):
     """P(F) into ``P``; returns (Ψ(F), region, through_svd).
 
@@ -148,7 +149,7 @@ def point_stress(F, d, model_id, extension_id, positive_only, params, work, P):
     return psi, region, through_svd
 
 
-@numba.njit(cache=True)
+@compiled_only
 def point_tangent(F, d, model_id, extension_id, positive_only, params, project, work, P, C):
     """Write P(F) into ``P`` and dP/dF into ``C``; return (Ψ, region, through_svd).
 
@@ -184,7 +185,7 @@ def point_tangent(F, d, model_id, extension_id, positive_only, params, project, 
     return psi, region, through_svd
 
 
-@numba.njit(cache=True)
+@compiled_only
 def energy_batch(F, d, model_id, extension_id, positive_only, params, energy, region):
     """Energy and region of every F (``d×d``) in the batch into ``energy`` and ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
@@ -194,7 +195,7 @@ def energy_batch(F, d, model_id, extension_id, positive_only, params, energy, re
         )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def stress_batch(F, d, model_id, extension_id, positive_only, params, P, region):
     """Stress and region of every F (``d×d``) in the batch into ``P`` and ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
@@ -204,7 +205,7 @@ def stress_batch(F, d, model_id, extension_id, positive_only, params, P, region)
         )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def tangent_batch(F, d, model_id, extension_id, positive_only, params, project, C, region):
     """Tangent (projected if ``project``) and region of every F (``d×d``) into ``C``, ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
@@ -215,7 +216,7 @@ def tangent_batch(F, d, model_id, extension_id, positive_only, params, project, 
         )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def sigma_batch(
     sigma, d, model_id, extension_id, positive_only, params, order, energy, g, H, region
 ):

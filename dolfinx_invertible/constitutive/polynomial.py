@@ -7,23 +7,24 @@ the same question of a polynomial of degree ≤ 3 in the step parameter.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from dolfinx_invertible.constitutive.compiled import compiled_only
 
 __all__ = ["first_root_in_unit_interval"]
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _value(t, c0, c1, c2, c3):
     return c0 + t * (c1 + t * (c2 + t * c3))
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _slope(t, c1, c2, c3):
     return c1 + t * (2.0 * c2 + 3.0 * t * c3)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _bracketed_root(lo, hi, c0, c1, c2, c3):
     """Root in [lo, hi] where the cubic is monotone and goes from > 0 to ≤ 0.
 
@@ -58,7 +59,7 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
     return t
 
 
-@numba.njit(cache=True)
+@compiled_only
 def first_root_in_unit_interval(c0, c1, c2, c3):
     """Smallest t in (0, 1] where c0 + c1 t + c2 t² + c3 t³ falls to 0, given c0 > 0.
 

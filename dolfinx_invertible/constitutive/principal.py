@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import sys
 
-import numba
 import numpy as np
 from numba.extending import overload
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.extensions.registry import EXTENSIONS
 from dolfinx_invertible.constitutive.literal import force_literal, literal_id
 from dolfinx_invertible.constitutive.models.registry import (
@@ -56,7 +56,7 @@ def _plain_derivatives(model_id, positive_only, sigma, d, params, order, work):
     return model_derivatives_into(model_id, sigma, d, params, order, work, ws.G, ws.H), 0
 
 
-_plain_derivatives_compiled = numba.njit(cache=True)(_plain_derivatives)
+_plain_derivatives_compiled = compiled_only(_plain_derivatives)
 
 
 def _extended_derivatives(extension_id, model_id, positive_only, sigma, d, params, order, work):
@@ -91,7 +91,7 @@ def _extended_derivatives_compiled(
     return implementation
 
 
-@numba.njit(cache=True)
+@compiled_only
 def principal_derivatives(model_id, extension_id, positive_only, sigma, d, params, order, work):
     """Ψ̂ext(σ) and, up to ``order`` (≤ 2), its gradient and Hessian into the G, H slots.
 
@@ -105,7 +105,7 @@ def principal_derivatives(model_id, extension_id, positive_only, sigma, d, param
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def quotient_slope(sigma_i, sigma_j, g_i, g_j, h_ii, h_jj, h_ij):
     """(gᵢ − gⱼ)/(σᵢ − σⱼ) from scalars, with the symmetric limit for a tiny gap.
 
@@ -118,7 +118,7 @@ def quotient_slope(sigma_i, sigma_j, g_i, g_j, h_ii, h_jj, h_ij):
     return 0.5 * (h_ii + h_jj) - h_ij
 
 
-@numba.njit(cache=True)
+@compiled_only
 def gradient_slope(model_id, region, sigma, params, work, i, j):
     """aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ), robust for σᵢ ≈ σⱼ.
 
@@ -136,7 +136,7 @@ def gradient_slope(model_id, region, sigma, params, work, i, j):
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def sum_slope(sigma_i, sigma_j, g_i, g_j):
     """(gᵢ + gⱼ)/(σᵢ + σⱼ) from scalars: the core of :func:`rotation_slope`."""
     total = sigma_i + sigma_j
@@ -146,7 +146,7 @@ def sum_slope(sigma_i, sigma_j, g_i, g_j):
     return (g_i + g_j) / total
 
 
-@numba.njit(cache=True)
+@compiled_only
 def rotation_slope(sigma, g, i, j):
     """bᵢⱼ = (gᵢ + gⱼ)/(σᵢ + σⱼ) with the denominator kept away from 0 (sign preserved)."""
     return sum_slope(sigma[i], sigma[j], g[i], g[j])

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.symmetric3 import angle, cross, dot, null_vector, spread
 
@@ -60,7 +61,7 @@ START_EIGENVECTORS = 3
 _SPLIT_SINE = 1e-3
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _unit_perpendicular(x0, x1, x2):
     """Return a unit vector perpendicular to the unit vector (x0, x1, x2)."""
     # Cross with the axis along which x is smallest: the result is never short.
@@ -74,7 +75,7 @@ def _unit_perpendicular(x0, x1, x2):
     return y0 / length, y1 / length, y2 / length
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _jacobi_pair(wp, wq, vp, vq):
     """Rotate columns p, q of W (and of V alongside) so that they become orthogonal.
 
@@ -109,7 +110,7 @@ def _jacobi_pair(wp, wq, vp, vq):
     return wp_new, wq_new, vp_new, vq_new, abs(t)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _times(w0, w1, w2, v):
     """Return the matrix with columns w0, w1, w2 times the vector v."""
     return (
@@ -119,7 +120,7 @@ def _times(w0, w1, w2, v):
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _warm_start(w0, w1, w2):
     """Return the Jacobi starting point (F V, V) column by column, V a rotation, and its code.
 
@@ -199,7 +200,7 @@ def _warm_start(w0, w1, w2):
     return fy, fz, fx, y, z, x, START_EIGENVECTORS
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _first_order_tangent(alpha, beta, gamma):
     """Return tan θ of the rotation that makes a pair orthogonal, or inf if it is not small.
 
@@ -214,7 +215,7 @@ def _first_order_tangent(alpha, beta, gamma):
     return np.inf
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _first_order_sweep(w0, w1, w2, v0, v1, v2):
     """Orthogonalise nearly orthogonal columns with the three rotations of a sweep at once.
 
@@ -236,7 +237,7 @@ def _first_order_sweep(w0, w1, w2, v0, v1, v2):
     return True, x0, x1, x2, y0, y1, y2
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _times_identity_plus(c0, c1, c2, t01, t02, t12):
     """Columns of [c0 c1 c2] (I + T), T antisymmetric with T₀₁ = t01, T₀₂ = t02, T₁₂ = t12."""
     return (
@@ -258,12 +259,12 @@ def _times_identity_plus(c0, c1, c2, t01, t02, t12):
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _negated(x):
     return (-x[0], -x[1], -x[2])
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     """Compute the 3×3 polar SVD; return the number of Jacobi sweeps and the starting point.
 
@@ -350,12 +351,12 @@ def _polar_svd_3_sweeps(F, U, sigma, V, warm):
     return sweeps, start
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _polar_svd_3(F, U, sigma, V):
     _polar_svd_3_sweeps(F, U, sigma, V, True)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _polar_svd_2(F, U, sigma, V):
     a, b, c, d = F[0, 0], F[0, 1], F[1, 0], F[1, 1]
     # F = (E I + H J) + (G K + Q L) with J a quarter turn and K, L reflections; the first part is a

@@ -7,27 +7,28 @@ matrix is passed as its six entries (a00, a11, a22, a01, a02, a12).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from dolfinx_invertible.constitutive.compiled import compiled_only
 
 __all__ = ["angle", "cross", "dot", "eigenvalues", "largest_cubic_root", "null_vector", "spread"]
 
 _SQRT3 = 1.7320508075688772
 
 
-@numba.njit(cache=True)
+@compiled_only
 def dot(x, y):
     """Return the dot product of two 3-tuples."""
     return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
 
 
-@numba.njit(cache=True)
+@compiled_only
 def cross(x, y):
     """Return the cross product of two 3-tuples."""
     return (x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0])
 
 
-@numba.njit(cache=True)
+@compiled_only
 def largest_cubic_root(r):
     """Largest root c of 4c³ − 3c = r for 0 ≤ r ≤ 1, i.e. cos(arccos(r)/3), in [√3/2, 1].
 
@@ -52,7 +53,7 @@ def largest_cubic_root(r):
     return c - (4.0 * c * c * c - 3.0 * c - r) / (12.0 * c * c - 3.0)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def spread(a00, a11, a22, a01, a02, a12):
     """Return (q, p², B's diagonal) with A = q I + p B, tr B = 0 and tr B² = 6."""
     q = (a00 + a11 + a22) * (1.0 / 3.0)
@@ -65,7 +66,7 @@ def spread(a00, a11, a22, a01, a02, a12):
     return q, p2, b00, b11, b22
 
 
-@numba.njit(cache=True)
+@compiled_only
 def angle(b00, b11, b22, a01, a02, a12, p2):
     """Return (p, sign, c, s) of the trigonometric formula for the eigenvalues (p² > 0).
 
@@ -87,7 +88,7 @@ def angle(b00, b11, b22, a01, a02, a12, p2):
     return p, sign, c, s
 
 
-@numba.njit(cache=True)
+@compiled_only
 def eigenvalues(a00, a11, a22, a01, a02, a12):
     """Return the eigenvalues of a symmetric 3×3 matrix, largest first (trigonometric formula).
 
@@ -103,7 +104,7 @@ def eigenvalues(a00, a11, a22, a01, a02, a12):
     return q + p * (c + _SQRT3 * s), q + p * (c - _SQRT3 * s), q - 2.0 * p * c
 
 
-@numba.njit(cache=True)
+@compiled_only
 def null_vector(a00, a11, a22, a01, a02, a12, lam):
     """Return a (non-unit) null vector of A − λI and its squared length.
 

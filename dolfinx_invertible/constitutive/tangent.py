@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension, run_time_integers
 from dolfinx_invertible.constitutive.principal import (
     gradient_slope,
@@ -39,7 +40,7 @@ _MAX_EIGEN_SWEEPS = 30
 def _specialised_workspace_first_piola(d: int):
     """:func:`workspace_first_piola` for one dimension: constant loop bounds unroll."""
 
-    @numba.njit(cache=True)
+    @compiled_only
     def product(work, P):
         for i in range(d):
             for j in range(d):
@@ -64,7 +65,7 @@ _WORKSPACE_FIRST_PIOLA = {d: _specialised_workspace_first_piola(d) for d in (2, 
 dispatch_on_dimension(workspace_first_piola, _WORKSPACE_FIRST_PIOLA)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _is_positive_definite(A):
     """Cholesky pivots all positive: no projection work needed (the common case)."""
     d = A.shape[0]
@@ -84,7 +85,7 @@ def _is_positive_definite(A):
     return determinant > 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _rotation(a_pp, a_qq, a_pq):
     """(c, s, t) of the Jacobi rotation that zeroes a_pq of a symmetric matrix (a_pq ≠ 0).
 
@@ -99,7 +100,7 @@ def _rotation(a_pp, a_qq, a_pq):
     return c, t * c, t
 
 
-@numba.njit(cache=True)
+@compiled_only
 def project_symmetric_3(A):
     """Replace the symmetric 3×3 ``A`` in place by its projection onto the PSD cone.
 
@@ -149,7 +150,7 @@ def project_symmetric_3(A):
 def _specialised_clamp_symmetric(d: int):
     """:func:`clamp_symmetric` for one dimension: constant loop bounds unroll."""
 
-    @numba.njit(cache=True)
+    @compiled_only
     def clamp(A, eigenvalues, eigenvectors):
         if _is_positive_definite(A):
             return
@@ -225,7 +226,7 @@ def _specialised_stress_derivative(d: int):
     """:func:`stress_derivative` compiled for one dimension: constant loop bounds unroll."""
     clamp = _CLAMP_SYMMETRIC[d]
 
-    @numba.njit(cache=True)
+    @compiled_only
     def derivative(model_id, region, sigma, params, work, project, C):
         n = d * d
         U = ws.matrix(work, ws.U, d)
@@ -302,7 +303,7 @@ def stress_derivative(model_id, region, sigma, d, params, work, project, C):
 _FIRST, _SECOND, _THIRD = run_time_integers(0, 1, 2)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
     """Write the 3D tangent as C = Σₖ wₖ eₖᵀ over nine modes eₖ of the SVD frame.
 
@@ -372,7 +373,7 @@ def _stress_derivative_3d(model_id, region, sigma, params, work, project, C):
             C[beta, alpha] = total
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _pair_slopes(model_id, region, sigma, params, work, project, i, j):
     """½aᵢⱼ and ½bᵢⱼ (clamped at 0 if ``project``): the weights of the pair's two modes."""
     sigma_i = sigma[i]

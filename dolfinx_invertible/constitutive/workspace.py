@@ -17,6 +17,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from dolfinx_invertible.constitutive.compiled import compiled_only
+
 __all__ = ["WORKSPACE_SIZE", "stack_buffer", "stack_array", "address", "new_workspace",
            "vector", "matrix", "table", "tensor3", "tensor4"]  # fmt: skip
 
@@ -119,7 +121,7 @@ def address(typingctx, array, offset):
     return types.CPointer(array.dtype)(array, offset), codegen
 
 
-@numba.njit(cache=True)
+@compiled_only
 def new_workspace(pointer):
     """Return the ``WORKSPACE_SIZE`` buffer behind ``pointer`` as an array, not zeroed.
 
@@ -133,37 +135,37 @@ def new_workspace(pointer):
 
 # Views are built with carray on a pointer into the buffer: a reshape would call into numba's C
 # helper on every access, which costs more than the arithmetic that follows.
-@numba.njit(cache=True)
+@compiled_only
 def vector(work, offset, d):
     """View the slot at ``offset`` as a vector of length d."""
     return numba.carray(address(work, offset), d)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def matrix(work, offset, d):
     """View the slot at ``offset`` as a d×d matrix."""
     return numba.carray(address(work, offset), (d, d))
 
 
-@numba.njit(cache=True)
+@compiled_only
 def table(work, offset, d):
     """View the slot at ``offset`` as a (d, 5) table."""
     return numba.carray(address(work, offset), (d, 5))
 
 
-@numba.njit(cache=True)
+@compiled_only
 def tensor3(work, offset, d):
     """View the slot at ``offset`` as a d×d×d tensor."""
     return numba.carray(address(work, offset), (d, d, d))
 
 
-@numba.njit(cache=True)
+@compiled_only
 def tensor4(work, offset, d):
     """View the slot at ``offset`` as a d×d×d×d tensor."""
     return numba.carray(address(work, offset), (d, d, d, d))
 
 
-@numba.njit(cache=True)
+@compiled_only
 def modes(work, offset, d):
     """View the slot at ``offset`` as d modes of d² entries."""
     return numba.carray(address(work, offset), (d, d * d))

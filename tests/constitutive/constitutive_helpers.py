@@ -5,8 +5,11 @@ random rotations, matrices with prescribed (signed) singular values, finite diff
 closed-form reference energies written straight from the formulas in docs/design.md.
 """
 
+import functools
+import inspect
 import itertools
 
+import numba
 import numpy as np
 
 import dolfinx_invertible as di
@@ -31,6 +34,22 @@ ENERGY_EXTENSION_NAMES = tuple(
     if extension is None or extension.has_energy
 )
 DIMS = (2, 3)
+
+
+@functools.cache
+def compiled_caller(function):
+    """A compiled function that calls ``function`` with the same arguments, callable from Python.
+
+    The package's inner functions are compiled for compiled callers only (no Python entry point,
+    ``constitutive/compiled.py``), and its dispatch stubs resolve only while compiling; a test
+    calls either through this. The arguments keep their names, so an id or a dimension that
+    the callee needs as a literal is made one (``numba.literally``) on this caller.
+    """
+    names = inspect.getfullargspec(getattr(function, "py_func", function)).args
+    arguments = ", ".join(names)
+    namespace = {"function": function}
+    exec(f"def call({arguments}):\n    return function({arguments})\n", namespace)  # noqa: S102
+    return numba.njit(namespace["call"])
 
 
 # --------------------------------------------------------------------------------------------

@@ -10,6 +10,7 @@ from constitutive_helpers import (
     MODEL_NAMES,
     MU,
     assert_rel_close,
+    compiled_caller,
     make_material,
     matrices_with_sigma,
     model_lam,
@@ -177,9 +178,9 @@ def _spectral(model, F, exact, lam=None):
     for n, f in enumerate(F):
         C = f.T @ f
         I1, I2, J = np.trace(C), np.trace(C @ C), np.linalg.det(f)
-        _, d1, d2, dJ = module.invariant_terms(I1, I2, J, d, MU, lam)
-        curvature = module.invariant_curvature(I1, I2, J, d, MU, lam)
-        codes[n] = spectral_projection(f, d, J, d1, d2, dJ, *curvature, result[n])
+        _, d1, d2, dJ = compiled_caller(module.invariant_terms)(I1, I2, J, d, MU, lam)
+        curvature = compiled_caller(module.invariant_curvature)(I1, I2, J, d, MU, lam)
+        codes[n] = compiled_caller(spectral_projection)(f, d, J, d1, d2, dJ, *curvature, result[n])
     return codes, result
 
 

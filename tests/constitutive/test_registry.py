@@ -8,7 +8,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from constitutive_helpers import LAM, MU
+from constitutive_helpers import LAM, MU, compiled_caller
 
 import dolfinx_invertible as di
 from dolfinx_invertible.constitutive import workspace as ws
@@ -43,24 +43,26 @@ def test_every_model_is_dispatched_to_its_module(model, rng):
     module = sys.modules[model.__module__]
     sigma = rng.uniform(0.5, 1.5, 3)
     f_own, h_own, f_registry, h_registry = (np.zeros((3, 5)) for _ in range(4))
-    module.tables(sigma, MU, LAM, f_own, h_own)
-    model_registry._tables(model.model_id, sigma, MU, LAM, f_registry, h_registry)
+    compiled_caller(module.tables)(sigma, MU, LAM, f_own, h_own)
+    compiled_caller(model_registry._tables)(model.model_id, sigma, MU, LAM, f_registry, h_registry)
     assert np.array_equal(f_own, f_registry) and np.array_equal(h_own, h_registry)
     f_compiled, h_compiled = np.zeros((3, 5)), np.zeros((3, 5))
     constants = _compiled_tables(model.model_id)(sigma, f_compiled, h_compiled)
     assert np.array_equal(f_own, f_compiled) and np.array_equal(h_own, h_compiled)
-    assert constants == module.constants(MU, LAM)
-    assert module.constants(MU, LAM) == model_registry._constants(model.model_id, MU, LAM)
-    assert module.slopes(sigma[0], sigma[1], MU, LAM) == model_registry._slopes(
-        model.model_id, sigma[0], sigma[1], MU, LAM
+    assert constants == compiled_caller(module.constants)(MU, LAM)
+    assert compiled_caller(module.constants)(MU, LAM) == compiled_caller(model_registry._constants)(
+        model.model_id, MU, LAM
     )
+    assert compiled_caller(module.slopes)(sigma[0], sigma[1], MU, LAM) == compiled_caller(
+        model_registry._slopes
+    )(model.model_id, sigma[0], sigma[1], MU, LAM)
     # Models written in invariants, and only those, take the SVD-free path.
-    available, *terms = model_registry.model_invariant_terms(
+    available, *terms = compiled_caller(model_registry.model_invariant_terms)(
         model.model_id, 3.1, 3.3, 1.05, 3, np.array([MU, LAM])
     )
     assert available == hasattr(module, "invariant_terms")
     if available:
-        assert tuple(terms) == module.invariant_terms(3.1, 3.3, 1.05, 3, MU, LAM)
+        assert tuple(terms) == compiled_caller(module.invariant_terms)(3.1, 3.3, 1.05, 3, MU, LAM)
 
 
 EXTENSION_FUNCTIONS = {
@@ -78,10 +80,10 @@ def test_every_extension_is_dispatched_to_its_module(extension):
     material = di.Material(model, extension())
     results = []
     for function in (
-        lambda work: principal_derivatives(
+        lambda work: compiled_caller(principal_derivatives)(
             model.model_id, extension.extension_id, False, sigma, 3, material.parameters, 2, work
         ),
-        lambda work: own(model.model_id, sigma, 3, material.parameters, 2, work),
+        lambda work: compiled_caller(own)(model.model_id, sigma, 3, material.parameters, 2, work),
     ):
         work = np.zeros(ws.WORKSPACE_SIZE)
         energy, region = function(work)

@@ -11,10 +11,10 @@ stress is continuous everywhere; the tangent jumps across region boundaries by d
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.models.base import Model
 from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
@@ -23,7 +23,7 @@ from dolfinx_invertible.constitutive.validation import Parameter
 __all__ = ["C1", "derivatives", "c1_derivatives"]
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _mixed_partial(subset, extra0, extra1, psi, g, H, T, Q, d):
     """Partial derivative of Ψ̂ over the indices in bitmask ``subset`` plus ``extra0/1`` (≥ 0)."""
     i0 = -1
@@ -60,7 +60,7 @@ def _mixed_partial(subset, extra0, extra1, psi, g, H, T, Q, d):
     return Q[i0, i1, i2, i3]
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _product(subset, skip, offsets, d):
     """Π (σᵢ − ε) over the indices in ``subset`` outside bitmask ``skip``."""
     value = 1.0
@@ -70,7 +70,7 @@ def _product(subset, skip, offsets, d):
     return value
 
 
-@numba.njit(cache=True)
+@compiled_only
 def c1_derivatives(model_id, sigma, d, params, order, work):
     """Ψ̂ext(σ) and (up to ``order`` ≤ 2) its gradient and Hessian into the G, H slots.
 

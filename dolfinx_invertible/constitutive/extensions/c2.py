@@ -13,9 +13,8 @@ of Ψ̂ at q.
 
 from __future__ import annotations
 
-import numba
-
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.models.registry import (
@@ -31,7 +30,7 @@ __all__ = ["C2", "derivatives", "c2_derivatives", "threshold_parameter"]
 _MIN_CROSSING_SLOPE = 1e-12
 
 
-@numba.njit(cache=True)
+@compiled_only
 def threshold_parameter(a, eps):
     """Smallest s in (0, 1] with Π(1 + s aᵢ) = ε, given Π(1 + aᵢ) < ε < 1."""
     d = a.shape[0]
@@ -55,7 +54,7 @@ def _specialised_c2_derivatives(d: int):
     Constant loop bounds unroll and the index tests fold away.
     """
 
-    @numba.njit(cache=True)
+    @compiled_only
     def specialised(model_id, sigma, params, order, work):
         eps = params[2]
         J = 1.0

@@ -8,9 +8,8 @@ a line search has to work on the residual. Kept for comparison with the energy-b
 
 from __future__ import annotations
 
-import numba
-
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.extensions.c2 import threshold_parameter
 from dolfinx_invertible.constitutive.models.registry import model_derivatives_into
@@ -18,7 +17,7 @@ from dolfinx_invertible.constitutive.models.registry import model_derivatives_in
 __all__ = ["IFE", "derivatives", "ife_derivatives"]
 
 
-@numba.njit(cache=True)
+@compiled_only
 def ife_derivatives(model_id, sigma, d, params, order, work):
     """Diagonal stress into the G slot, clamped Hessian into the H slot; returns (0, region).
 

@@ -5,15 +5,14 @@ No volume term: λ is 0 by definition. Separable form: f(x) = μ (x − 1)².
 
 from __future__ import annotations
 
-import numba
-
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.models.base import Model
 
 # f = μ (x − 1)² and h = 0, as in fixed corotated: the same tables and divided differences.
 from dolfinx_invertible.constitutive.models.fixed_corotated import slopes, tables  # noqa: F401
 
 
-@numba.njit(cache=True)
+@compiled_only
 def constants(mu, lam):
     """(c, k₁, k₂) of the separable form."""
     return 0.0, 0.0, 0.0

@@ -6,18 +6,17 @@ Separable form: f(x) = μ (x − 1)², h(x) = x − 1, c = λ.
 
 from __future__ import annotations
 
-import numba
-
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.models.base import Model
 
 
-@numba.njit(cache=True)
+@compiled_only
 def constants(mu, lam):
     """(c, k₁, k₂) of the separable form."""
     return lam, 0.0, 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def tables(sigma, mu, lam, f, h):
     """F and h with their first four derivatives at each singular value."""
     for i in range(sigma.shape[0]):
@@ -34,7 +33,7 @@ def tables(sigma, mu, lam, f, h):
         h[i, 4] = 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def slopes(x, y, mu, lam):
     """Divided differences (f′(x) − f′(y))/(x − y) and (h′(x) − h′(y))/(x − y)."""
     return 2.0 * mu, 0.0

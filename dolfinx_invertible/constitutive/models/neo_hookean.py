@@ -7,18 +7,17 @@ from __future__ import annotations
 
 import math
 
-import numba
-
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.models.base import Model
 
 
-@numba.njit(cache=True)
+@compiled_only
 def constants(mu, lam):
     """(c, k₁, k₂) of the separable form."""
     return lam, 0.0, 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def tables(sigma, mu, lam, f, h):
     """F and h with their first four derivatives at each singular value."""
     for i in range(sigma.shape[0]):
@@ -37,14 +36,14 @@ def tables(sigma, mu, lam, f, h):
         h[i, 4] = -6.0 * inverse2 * inverse2
 
 
-@numba.njit(cache=True)
+@compiled_only
 def slopes(x, y, mu, lam):
     """Divided differences (f′(x) − f′(y))/(x − y) and (h′(x) − h′(y))/(x − y)."""
     inverse_product = 1.0 / (x * y)
     return mu * (1.0 + inverse_product), -inverse_product
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariant_terms(I1, I2, J, d, mu, lam):
     """Ψ and ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J for I₁ = tr C, I₂ = tr C² (J > 0): Ψ without an SVD."""
     log_J = math.log(J)
@@ -52,7 +51,7 @@ def invariant_terms(I1, I2, J, d, mu, lam):
     return psi, 0.5 * mu, 0.0, (lam * log_J - mu) / J
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariant_curvature(I1, I2, J, d, mu, lam):
     """Second derivatives (Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) in (I₁, I₂, J) (J > 0)."""
     return 0.0, 0.0, (lam * (1.0 - math.log(J)) + mu) / (J * J), 0.0, 0.0, 0.0

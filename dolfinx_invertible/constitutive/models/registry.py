@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import sys
 
-import numba
 from numba.extending import overload
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.literal import force_literal, literal_id
 from dolfinx_invertible.constitutive.models.arap import ARAP
 from dolfinx_invertible.constitutive.models.base import Model
@@ -195,7 +195,7 @@ def _model_uses_second_invariant_compiled(model_id):
     return implementation
 
 
-@numba.njit(cache=True)
+@compiled_only
 def model_derivatives(model_id, sigma, d, params, order, g, H, T, Q, f, h):
     """Ψ̂(σ) of model ``model_id``; derivative tensors up to ``order`` go to g, H, T, Q.
 
@@ -208,7 +208,7 @@ def model_derivatives(model_id, sigma, d, params, order, g, H, T, Q, f, h):
     return separable_derivatives(sigma, d, order, f, h, c, k1, k2, g, H, T, Q)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def model_gradient_slope(model_id, sigma, params, i, j, h):
     """(gᵢ − gⱼ)/(σᵢ − σⱼ) in closed form, exact also for σᵢ = σⱼ.
 
@@ -221,7 +221,7 @@ def model_gradient_slope(model_id, sigma, params, i, j, h):
     return separable_gradient_slope(sigma, i, j, f_slope, h_slope, c, k1, k2, h)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def model_derivatives_into(model_id, sigma, d, params, order, work, gradient_slot, hessian_slot):
     """:func:`model_derivatives` with the gradient and Hessian written to workspace slots."""
     return model_derivatives(
@@ -239,7 +239,7 @@ def model_derivatives_into(model_id, sigma, d, params, order, work, gradient_slo
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def model_anchor_derivatives(model_id, q, d, params, order, work):
     """Ψ̂ at ``q`` (the workspace's Q_POINT) with its derivatives contracted with A_OFFSET.
 

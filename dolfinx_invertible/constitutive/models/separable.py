@@ -13,9 +13,8 @@ aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ) of the stress derivative's off-diago
 
 from __future__ import annotations
 
-import numba
-
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension, run_time_integers
 
 __all__ = [
@@ -30,7 +29,7 @@ __all__ = [
 (_UNUSED,) = run_time_integers(-1)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def volume_derivative(sigma, i, j, k, l):
     """Mixed partial of J = Πσ over ``i`` and the listed indices (−1 = unused), for d ≤ 3.
 
@@ -51,7 +50,7 @@ def volume_derivative(sigma, i, j, k, l):
     return 1.0 if l < 0 else 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _volume_third(sigma, i, j, k):
     """Third derivative of K(J) = k₂/2 (J − 1)² + k₁ (J − 1), without the constants."""
     return (
@@ -64,7 +63,7 @@ def _volume_third(sigma, i, j, k):
     )
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _volume_fourth(sigma, i, j, k, l):
     return (
         volume_derivative(sigma, i, j, _UNUSED, _UNUSED)
@@ -90,7 +89,7 @@ def _specialised_separable_derivatives(d: int):
     Constant loop bounds unroll and the index tests fold away.
     """
 
-    @numba.njit(cache=True)
+    @compiled_only
     def specialised(sigma, order, f, h, c, k1, k2, g, H, T, Q):
         has_sum = c != 0.0
         has_volume = k1 != 0.0 or k2 != 0.0
@@ -191,7 +190,7 @@ _SEPARABLE_DERIVATIVES = {d: _specialised_separable_derivatives(d) for d in (2, 
 dispatch_on_dimension(separable_derivatives, _SEPARABLE_DERIVATIVES)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def separable_gradient_slope(sigma, i, j, f_slope, h_slope, c, k1, k2, h):
     """aᵢⱼ = (gᵢ − gⱼ)/(σᵢ − σⱼ) without cancellation, from exact divided differences.
 
@@ -208,7 +207,7 @@ def separable_gradient_slope(sigma, i, j, f_slope, h_slope, c, k1, k2, h):
     return f_slope + c * S * h_slope - dK * volume_derivative(sigma, i, j, _UNUSED, _UNUSED)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _volume_first(q0, q1, q2, d, i):
     """∂J/∂σᵢ from scalars (q2 unused in 2D)."""
     if d == 2:
@@ -220,7 +219,7 @@ def _volume_first(q0, q1, q2, d, i):
     return q0 * q1
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _volume_second(q0, q1, q2, d, i, j):
     """∂²J/∂σᵢ∂σⱼ from scalars."""
     if i == j:
@@ -238,7 +237,7 @@ def _volume_second(q0, q1, q2, d, i, j):
 def _specialised_separable_anchor(d: int):
     """Compile :func:`separable_anchor_derivatives` for one dimension."""
 
-    @numba.njit(cache=True)
+    @compiled_only
     def specialised(order, c, k1, k2, work):
         q = ws.Q_POINT
         a = ws.A_OFFSET

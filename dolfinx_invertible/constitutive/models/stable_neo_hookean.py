@@ -11,18 +11,17 @@ Separable form: f(x) = μ/2 (x² − 1), k₁ = −μ, k₂ = λ + μ.
 
 from __future__ import annotations
 
-import numba
-
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.models.base import Model
 
 
-@numba.njit(cache=True)
+@compiled_only
 def constants(mu, lam):
     """(c, k₁, k₂) of the separable form."""
     return 0.0, -mu, lam + mu
 
 
-@numba.njit(cache=True)
+@compiled_only
 def tables(sigma, mu, lam, f, h):
     """F and h with their first four derivatives at each singular value."""
     for i in range(sigma.shape[0]):
@@ -36,20 +35,20 @@ def tables(sigma, mu, lam, f, h):
             h[i, m] = 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def slopes(x, y, mu, lam):
     """Divided differences (f′(x) − f′(y))/(x − y) and (h′(x) − h′(y))/(x − y)."""
     return mu, 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariant_terms(I1, I2, J, d, mu, lam):
     """Ψ and ∂Ψ/∂I₁, ∂Ψ/∂I₂, ∂Ψ/∂J for I₁ = tr C, I₂ = tr C²: Ψ without an SVD."""
     psi = 0.5 * mu * (I1 - d) - mu * (J - 1.0) + 0.5 * (lam + mu) * (J - 1.0) ** 2
     return psi, 0.5 * mu, 0.0, (lam + mu) * (J - 1.0) - mu
 
 
-@numba.njit(cache=True)
+@compiled_only
 def invariant_curvature(I1, I2, J, d, mu, lam):
     """Second derivatives (Ψ₁₁, Ψ₂₂, Ψ_JJ, Ψ₁₂, Ψ₁J, Ψ₂J) in (I₁, I₂, J)."""
     return 0.0, 0.0, lam + mu, 0.0, 0.0, 0.0

@@ -33,6 +33,7 @@ from __future__ import annotations
 import numba
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.constitutive.literal import run_time_integers
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
 from dolfinx_invertible.fem.kernels.constants import (
@@ -80,7 +81,7 @@ _CONTRACTED = _TANGENT + 81
 KERNEL_SCRATCH = _CONTRACTED + 9 * 3 * MAX_NODES
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def _material(c_, c, params):
     """Fill ``params`` ([μ, λ, ε, k]) from the constants; return (positive_only, project).
 
@@ -102,7 +103,7 @@ def _material(c_, c, params):
     return c[POSITIVE_ONLY_SLOT] != 0.0, c[PROJECT_SLOT] != 0.0
 
 
-@numba.njit(cache=True)
+@compiled_only
 def _point_views(scratch, nodes, d):
     """Return views of the per-point scratch: basis gradients, geometry Jacobian, F."""
     gradients = numba.carray(ws.address(scratch, _GRADIENTS), (nodes, d))
@@ -111,7 +112,7 @@ def _point_views(scratch, nodes, d):
     return gradients, jacobian, F
 
 
-@numba.njit(cache=True)
+@compiled_only
 def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
     """Add the cell energy ∫Ψ(F) dX to ``A_[0]``."""
     numba.literally(d)
@@ -140,7 +141,7 @@ def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
     count_points(c, _ENERGY_FIELD, points, svd_points)
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def _residual_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes, geometry_nodes):
     """Run the quadrature loop of :func:`cell_residual`; return (points, points through the SVD).
 
@@ -195,7 +196,7 @@ def _residual_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes,
     return points, svd_points
 
 
-@numba.njit(cache=True)
+@compiled_only
 def cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id):
     """Add the cell residual ∫ P : ∇φ dX to ``A_``.
 
@@ -224,7 +225,7 @@ def cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id):
     count_points(header, _RESIDUAL_FIELD, points, svd_points)
 
 
-@numba.njit(cache=True)
+@compiled_only
 def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
     """Add the cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
     numba.literally(d)

@@ -15,6 +15,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.fem.kernels.constants import COUNTERS_SLOT
 
 __all__ = [
@@ -78,7 +79,7 @@ def _is_null(typingctx, pointer):
     return types.boolean(pointer), codegen
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def count_points(c, first_field, points, svd_points):
     """Add a cell's point counts to the row the constants ``c`` point to (if any)."""
     pointer = _pointer_from_bits(c[COUNTERS_SLOT])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numba
 
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import compiled_only
 from dolfinx_invertible.fem.kernels.constants import (
     GEOMETRY_NODES_SLOT,
     HEADER_SIZE,
@@ -24,7 +25,7 @@ __all__ = [
 ]
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def inverse_jacobian(coordinates, geometry, jacobian, inverse, geometry_nodes, d):
     """Write J and K = J⁻¹ (rows: reference directions) at one point; return |det J|.
 
@@ -66,7 +67,7 @@ def inverse_jacobian(coordinates, geometry, jacobian, inverse, geometry_nodes, d
     return abs(determinant)
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def physical_gradients(coordinates, geometry, basis, gradients, jacobian, nodes, d):
     """Write the physical basis gradients at one point into ``gradients``; return |det J|.
 
@@ -83,7 +84,7 @@ def physical_gradients(coordinates, geometry, basis, gradients, jacobian, nodes,
     return scale
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def reference_deformation(displacement, basis, inverse, F, nodes, d):
     """F = I + (Σ_a u_a ⊗ ∂φ_a/∂ξ) K into ``F``, from the reference derivatives ``basis``.
 
@@ -107,7 +108,7 @@ def reference_deformation(displacement, basis, inverse, F, nodes, d):
             F[i, j] = total
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def deformation_gradient(displacement, gradients, F, nodes, d):
     """F = I + Σ_a u_a ⊗ ∇φ_a into ``F``."""
     for i in range(d):
@@ -120,7 +121,7 @@ def deformation_gradient(displacement, gradients, F, nodes, d):
                 F[i, j] += value * gradients[a, j]
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def cell_layout(c_, w_, coordinates_, d):
     """Return views of the kernel inputs for dimension ``d``, and the element sizes.
 
@@ -139,7 +140,7 @@ def cell_layout(c_, w_, coordinates_, d):
     return c, nodes, points, basis_start, geometry_start, displacement, coordinates
 
 
-@numba.njit(cache=True, forceinline=True)
+@compiled_only(forceinline=True)
 def point_geometry(
     c, q, basis_start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
 ):
