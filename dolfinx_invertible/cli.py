@@ -41,9 +41,10 @@ def _compile(arguments: argparse.Namespace) -> int:
         key = f"{material} {dimension}D"
         per_material[key] = per_material.get(key, 0.0) + value
     details = "\n".join(f"  {key}: {value:.1f} s" for key, value in per_material.items())
+    paths = sum(1 for kind, _, _ in seconds if kind == "svd path")
     print(
-        f"{len(seconds)} kernels compiled or loaded from the cache in "
-        f"{time.perf_counter() - start:.1f} s:\n{details}"
+        f"{len(seconds) - paths} kernels and {paths} SVD paths compiled or loaded from the cache "
+        f"in {time.perf_counter() - start:.1f} s:\n{details}"
     )
     return 0
 

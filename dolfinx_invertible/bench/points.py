@@ -29,6 +29,7 @@ from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
 from dolfinx_invertible.constitutive.principal import principal_derivatives
 from dolfinx_invertible.constitutive.svd import polar_svd_point
+from dolfinx_invertible.constitutive.svd_path import svd_path_address
 
 STRETCHES = {
     "fast path (s = 1.01)": 1.01,
@@ -70,7 +71,7 @@ def _stage_functions(model_id: int, extension_id: int):
             checksum += psi
         return checksum
 
-    def point_stage(F, params, kind, project):
+    def point_stage(F, params, svd_path, kind, project):
         work = ws.new_workspace(ws.stack_buffer())
         P = np.empty((3, 3))
         C = np.empty((9, 9))
@@ -79,15 +80,15 @@ def _stage_functions(model_id: int, extension_id: int):
         for n in range(F.shape[0]):
             if kind == 0:
                 psi, _, through_svd = point_energy(
-                    F[n], 3, model_id, extension_id, False, params, work
+                    F[n], 3, model_id, extension_id, False, params, svd_path, work
                 )
             elif kind == 1:
                 psi, _, through_svd = point_stress(
-                    F[n], 3, model_id, extension_id, False, params, work, P
+                    F[n], 3, model_id, extension_id, False, params, svd_path, work, P
                 )
             else:
                 psi, _, through_svd = point_tangent(
-                    F[n], 3, model_id, extension_id, False, params, project, work, P, C
+                    F[n], 3, model_id, extension_id, False, params, project, svd_path, work, P, C
                 )
             checksum += psi
             svd_points += through_svd
@@ -101,6 +102,7 @@ def _stage_functions(model_id: int, extension_id: int):
 def _stages(F: np.ndarray, material) -> dict:
     principal_stage, point_stage = _stage_functions(material.model.model_id, material.extension_id)
     params = material.parameters
+    svd_path = svd_path_address(material.model.model_id, material.extension_id, 3)
     # Orders as arrays' elements: run-time integers, as the kernels pass them.
     orders = np.arange(3)
     return {
@@ -108,10 +110,10 @@ def _stages(F: np.ndarray, material) -> dict:
         "SVD + principal energy": lambda: principal_stage(F, params, orders[0]),
         "SVD + principal gradient": lambda: principal_stage(F, params, orders[1]),
         "SVD + principal Hessian": lambda: principal_stage(F, params, orders[2]),
-        "point energy": lambda: point_stage(F, params, 0, False),
-        "point stress": lambda: point_stage(F, params, 1, False),
-        "point tangent, exact": lambda: point_stage(F, params, 2, False),
-        "point tangent, projected": lambda: point_stage(F, params, 2, True),
+        "point energy": lambda: point_stage(F, params, svd_path, 0, False),
+        "point stress": lambda: point_stage(F, params, svd_path, 1, False),
+        "point tangent, exact": lambda: point_stage(F, params, svd_path, 2, False),
+        "point tangent, projected": lambda: point_stage(F, params, svd_path, 2, True),
     }
 
 

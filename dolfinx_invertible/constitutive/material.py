@@ -9,6 +9,7 @@ from dolfinx_invertible.constitutive.extensions.base import Extension
 from dolfinx_invertible.constitutive.extensions.registry import NONE_ID
 from dolfinx_invertible.constitutive.models.base import Model
 from dolfinx_invertible.constitutive.principal import OVERFLOW_REGION, UNDEFINED_REGION
+from dolfinx_invertible.constitutive.svd_path import svd_path_address
 from dolfinx_invertible.constitutive.validation import as_deformation_gradients, as_singular_values
 
 __all__ = ["Material", "NoEnergyError"]
@@ -99,6 +100,9 @@ class Material:
     def _loop(self, kind: str, d: int):
         return pointwise.batch(kind, self.model.model_id, self.extension_id, d)
 
+    def _svd_path(self, d: int) -> int:
+        return svd_path_address(self.model.model_id, self.extension_id, d)
+
     def _require_energy(self):
         if self.extension is not None and not self.extension.has_energy:
             raise NoEnergyError(
@@ -142,8 +146,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         energy = np.empty(len(batch))
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("energy", batch.shape[1])(
-            batch, self.positive_only, self.parameters, energy, region
+        d = batch.shape[1]
+        self._loop("energy", d)(
+            batch, self.positive_only, self.parameters, self._svd_path(d), energy, region
         )
         return energy[0] if single else energy
 
@@ -152,8 +157,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         stress = np.empty_like(batch)
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("stress", batch.shape[1])(
-            batch, self.positive_only, self.parameters, stress, region
+        d = batch.shape[1]
+        self._loop("stress", d)(
+            batch, self.positive_only, self.parameters, self._svd_path(d), stress, region
         )
         self._require_defined(region, "stress")
         self._require_finite(region, batch, "stress")
@@ -170,8 +176,9 @@ class Material:
         tangent = np.empty((len(batch), d * d, d * d))
         region = np.empty(len(batch), dtype=np.int64)
         self._loop("tangent", d)(
-            batch, self.positive_only, self.parameters, bool(project), tangent, region
-        )
+            batch, self.positive_only, self.parameters, bool(project), self._svd_path(d), tangent,
+            region,
+        )  # fmt: skip
         self._require_defined(region, "tangent")
         self._require_finite(region, batch, "tangent")
         return tangent[0] if single else tangent
@@ -181,8 +188,9 @@ class Material:
         batch, single = as_deformation_gradients(F)
         energy = np.empty(len(batch))
         region = np.empty(len(batch), dtype=np.int64)
-        self._loop("energy", batch.shape[1])(
-            batch, self.positive_only, self.parameters, energy, region
+        d = batch.shape[1]
+        self._loop("energy", d)(
+            batch, self.positive_only, self.parameters, self._svd_path(d), energy, region
         )
         return region[0] if single else region
 

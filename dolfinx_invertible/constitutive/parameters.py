@@ -1,4 +1,4 @@
-"""Material parameter conversions."""
+"""Material parameters: their layout in the compiled code, and conversions."""
 
 from __future__ import annotations
 
@@ -6,7 +6,10 @@ import math
 
 from dolfinx_invertible.constitutive.validation import check_positive
 
-__all__ = ["lame"]
+__all__ = ["PARAMETER_COUNT", "lame"]
+
+#: Entries of a material's parameter vector, in the order the compiled code reads: [μ, λ, ε, k].
+PARAMETER_COUNT = 4
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:

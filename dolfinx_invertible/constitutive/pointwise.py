@@ -23,11 +23,9 @@ from dolfinx_invertible.constitutive.invariants import (
 from dolfinx_invertible.constitutive.literal import run_time_integers
 from dolfinx_invertible.constitutive.principal import (
     OVERFLOW_REGION,
-    UNDEFINED_REGION,
     principal_derivatives,
 )
-from dolfinx_invertible.constitutive.svd import polar_svd_point
-from dolfinx_invertible.constitutive.tangent import stress_derivative, workspace_first_piola
+from dolfinx_invertible.constitutive.svd_path import call_svd_path
 
 __all__ = [
     "point_energy",
@@ -48,20 +46,6 @@ _SAFE_PARAMETER = 1e100
 # Derivative orders as runtime integers: a literal argument would make numba compile the whole
 # call chain once per order value, tripling the cold compile time for no measurable speed.
 _ENERGY, _STRESS, _TANGENT = run_time_integers(0, 1, 2)
-
-
-@compiled_only
-def _through_svd(F, d, model_id, extension_id, positive_only, params, order, work):
-    """Take the SVD path; return (Ψ, region).
-
-    U, σ, V go into the workspace, then Ψ̂ext(σ) with derivatives up to ``order`` into the G, H
-    slots.
-    """
-    sigma = ws.vector(work, ws.SIGMA, d)
-    polar_svd_point(F, d, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
-    return principal_derivatives(
-        model_id, extension_id, positive_only, sigma, d, params, order, work
-    )
 
 
 @compiled_only
@@ -97,12 +81,13 @@ def _finite(M):
 
 
 @compiled_only
-def point_energy(F, d, model_id, extension_id, positive_only, params, work):
+def point_energy(F, d, model_id, extension_id, positive_only, params, svd_path, work):
     """Return (Ψ(F), region, through_svd).
 
-    ``F`` is ``d×d``; ``work`` is a workspace buffer (see
-    :mod:`~dolfinx_invertible.constitutive.workspace`); ``through_svd`` says whether the SVD
-    path was taken. An energy that overflows is +inf.
+    ``F`` is ``d×d``; ``svd_path`` the address of the material's SVD path
+    (:func:`~dolfinx_invertible.constitutive.svd_path.svd_path_address`); ``work`` a workspace
+    buffer (see :mod:`~dolfinx_invertible.constitutive.workspace`); ``through_svd`` says whether
+    the SVD path was taken. An energy that overflows is +inf.
     """
     I1, I2, J = invariants(F, model_id, extension_id)
     if _overflowed(I1, J):
@@ -112,9 +97,8 @@ def point_energy(F, d, model_id, extension_id, positive_only, params, work):
     )
     through_svd = False
     if not done:
-        psi, region = _through_svd(
-            F, d, model_id, extension_id, positive_only, params, _ENERGY, work
-        )
+        psi = call_svd_path(svd_path, F, positive_only, params, False, _ENERGY, work, work, work)
+        region = int(work[ws.REGION])
         through_svd = True
     if not abs(psi) < np.inf:  # NaN (inf − inf) or ±inf: beyond the largest double
         psi = np.inf
@@ -122,7 +106,7 @@ def point_energy(F, d, model_id, extension_id, positive_only, params, work):
 
 
 @compiled_only
-def point_stress(F, d, model_id, extension_id, positive_only, params, work, P):
+def point_stress(F, d, model_id, extension_id, positive_only, params, svd_path, work, P):
     """P(F) into ``P``; returns (Ψ(F), region, through_svd).
 
     Where the stress overflows, P is zero, Ψ is +inf and the region :data:`OVERFLOW_REGION`.
@@ -136,10 +120,8 @@ def point_stress(F, d, model_id, extension_id, positive_only, params, work, P):
     )
     through_svd = False
     if not done:
-        psi, region = _through_svd(
-            F, d, model_id, extension_id, positive_only, params, _STRESS, work
-        )
-        workspace_first_piola(work, P, d)
+        psi = call_svd_path(svd_path, F, positive_only, params, False, _STRESS, work, P, work)
+        region = int(work[ws.REGION])
         through_svd = True
     if not abs(psi) < np.inf:
         psi = np.inf
@@ -150,7 +132,9 @@ def point_stress(F, d, model_id, extension_id, positive_only, params, work, P):
 
 
 @compiled_only
-def point_tangent(F, d, model_id, extension_id, positive_only, params, project, work, P, C):
+def point_tangent(
+    F, d, model_id, extension_id, positive_only, params, project, svd_path, work, P, C
+):
     """Write P(F) into ``P`` and dP/dF into ``C``; return (Ψ, region, through_svd).
 
     The tangent is SPD-projected if ``project``. Where the stress or the tangent overflows, both
@@ -166,15 +150,8 @@ def point_tangent(F, d, model_id, extension_id, positive_only, params, project, 
     )
     through_svd = False
     if not done:
-        psi, region = _through_svd(
-            F, d, model_id, extension_id, positive_only, params, _TANGENT, work
-        )
-        sigma = ws.vector(work, ws.SIGMA, d)
-        workspace_first_piola(work, P, d)
-        if region == UNDEFINED_REGION:
-            C[:, :] = 0.0
-        else:
-            stress_derivative(model_id, region, sigma, d, params, work, project, C)
+        psi = call_svd_path(svd_path, F, positive_only, params, project, _TANGENT, work, P, C)
+        region = int(work[ws.REGION])
         through_svd = True
     if not abs(psi) < np.inf:
         psi = np.inf
@@ -186,34 +163,37 @@ def point_tangent(F, d, model_id, extension_id, positive_only, params, project, 
 
 
 @compiled_only
-def energy_batch(F, d, model_id, extension_id, positive_only, params, energy, region):
+def energy_batch(F, d, model_id, extension_id, positive_only, params, svd_path, energy, region):
     """Energy and region of every F (``d×d``) in the batch into ``energy`` and ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         energy[n], region[n], _ = point_energy(
-            F[n], d, model_id, extension_id, positive_only, params, work
+            F[n], d, model_id, extension_id, positive_only, params, svd_path, work
         )
 
 
 @compiled_only
-def stress_batch(F, d, model_id, extension_id, positive_only, params, P, region):
+def stress_batch(F, d, model_id, extension_id, positive_only, params, svd_path, P, region):
     """Stress and region of every F (``d×d``) in the batch into ``P`` and ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
     for n in range(F.shape[0]):
         _, region[n], _ = point_stress(
-            F[n], d, model_id, extension_id, positive_only, params, work, P[n]
+            F[n], d, model_id, extension_id, positive_only, params, svd_path, work, P[n]
         )
 
 
 @compiled_only
-def tangent_batch(F, d, model_id, extension_id, positive_only, params, project, C, region):
+def tangent_batch(
+    F, d, model_id, extension_id, positive_only, params, project, svd_path, C, region
+):
     """Tangent (projected if ``project``) and region of every F (``d×d``) into ``C``, ``region``."""
     work = ws.new_workspace(ws.stack_buffer())
     P = np.empty((d, d))
     for n in range(F.shape[0]):
         _, region[n], _ = point_tangent(
-            F[n], d, model_id, extension_id, positive_only, params, project, work, P, C[n]
-        )
+            F[n], d, model_id, extension_id, positive_only, params, project, svd_path, work, P,
+            C[n],
+        )  # fmt: skip
 
 
 @compiled_only
@@ -251,18 +231,22 @@ _BATCH_ENTRIES: dict[tuple[str, int, int, int], object] = {}
 def _batch_entry(kind: str, model_id: int, extension_id: int, d: int):
     if kind == "energy":
 
-        def entry(F, positive_only, params, energy, region):
-            energy_batch(F, d, model_id, extension_id, positive_only, params, energy, region)
+        def entry(F, positive_only, params, svd_path, energy, region):
+            energy_batch(
+                F, d, model_id, extension_id, positive_only, params, svd_path, energy, region
+            )
 
     elif kind == "stress":
 
-        def entry(F, positive_only, params, P, region):
-            stress_batch(F, d, model_id, extension_id, positive_only, params, P, region)
+        def entry(F, positive_only, params, svd_path, P, region):
+            stress_batch(F, d, model_id, extension_id, positive_only, params, svd_path, P, region)
 
     elif kind == "tangent":
 
-        def entry(F, positive_only, params, project, C, region):
-            tangent_batch(F, d, model_id, extension_id, positive_only, params, project, C, region)
+        def entry(F, positive_only, params, project, svd_path, C, region):
+            tangent_batch(
+                F, d, model_id, extension_id, positive_only, params, project, svd_path, C, region
+            )
 
     else:
 

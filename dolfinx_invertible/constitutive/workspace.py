@@ -79,6 +79,8 @@ MODES = _layout.slot(MODE_SET)
 WEIGHTED = _layout.slot(MODE_SET)
 STRETCH_MODE = _layout.slot(MODE)
 TWIST_MODE = _layout.slot(MODE)
+# The region code of the SVD path (:mod:`~dolfinx_invertible.constitutive.svd_path`).
+REGION = _layout.slot(1)
 WORKSPACE_SIZE = _layout.size
 
 

@@ -122,18 +122,24 @@ def _fast_path_tangent(material, d):
 
     from dolfinx_invertible.constitutive import workspace as ws
     from dolfinx_invertible.constitutive.pointwise import point_tangent
+    from dolfinx_invertible.constitutive.svd_path import svd_path_address
 
     model_id, extension_id = material.model.model_id, material.extension_id
 
-    def loop(F, params, positive_only, C, through_svd):
+    def loop(F, params, positive_only, svd_path, C, through_svd):
         work = ws.new_workspace(ws.stack_buffer())
         P = np.empty((d, d))
         for n in range(F.shape[0]):
             _, _, through_svd[n] = point_tangent(
-                F[n], d, model_id, extension_id, positive_only, params, True, work, P, C[n]
-            )
+                F[n], d, model_id, extension_id, positive_only, params, True, svd_path, work, P,
+                C[n],
+            )  # fmt: skip
 
-    return numba.njit(loop)
+    compiled = numba.njit(loop)
+    svd_path = svd_path_address(model_id, extension_id, d)
+    return lambda F, params, positive_only, C, through_svd: compiled(
+        F, params, positive_only, svd_path, C, through_svd
+    )
 
 
 @pytest.mark.parametrize("d", DIMS)

@@ -47,6 +47,7 @@ from dolfinx_invertible.fem.kernels.constants import (
     PARAMETERS_START,
     POSITIVE_ONLY_SLOT,
     PROJECT_SLOT,
+    SVD_PATH_SLOT,
     WEIGHTS_START,
 )
 from dolfinx_invertible.fem.kernels.counters import (
@@ -54,6 +55,7 @@ from dolfinx_invertible.fem.kernels.counters import (
     RESIDUAL_COUNTS,
     TANGENT_COUNTS,
     count_points,
+    integer_from_bits,
 )
 from dolfinx_invertible.fem.kernels.geometry import (
     cell_layout,
@@ -83,7 +85,10 @@ KERNEL_SCRATCH = _CONTRACTED + 9 * 3 * MAX_NODES
 
 @compiled_only(forceinline=True)
 def _material(c_, c, params):
-    """Fill ``params`` ([μ, λ, ε, k]) from the constants; return (positive_only, project).
+    """Fill ``params`` ([μ, λ, ε, k]) from the constants; return (positive_only, project, path).
+
+    ``path`` is the address of the material's SVD path
+    (:mod:`~dolfinx_invertible.constitutive.svd_path`).
 
     A parameter given as a DOLFINx Constant is read from that Constant, which DOLFINx packs
     after the kernel's own constants (see :mod:`.constants`), so a new ``value`` is seen at the
@@ -100,7 +105,7 @@ def _material(c_, c, params):
         mu = params[0]
         lam = params[1]
         params[3] = 20.0 * mu * (3.0 * lam + 2.0 * mu) / (lam + mu)
-    return c[POSITIVE_ONLY_SLOT] != 0.0, c[PROJECT_SLOT] != 0.0
+    return c[POSITIVE_ONLY_SLOT] != 0.0, c[PROJECT_SLOT] != 0.0, integer_from_bits(c[SVD_PATH_SLOT])
 
 
 @compiled_only
@@ -122,7 +127,7 @@ def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
         c_, w_, coordinates_, d
     )
     params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
-    positive_only, _ = _material(c_, c, params)
+    positive_only, _, svd_path = _material(c_, c, params)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     gradients, jacobian, F = _point_views(scratch, nodes, d)
@@ -133,7 +138,7 @@ def cell_energy(A_, w_, c_, coordinates_, d, model_id, extension_id):
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
         psi, _, through_svd = point_energy(
-            F, d, model_id, extension_id, positive_only, params, work
+            F, d, model_id, extension_id, positive_only, params, svd_path, work
         )
         svd_points += through_svd
         total += scale * psi
@@ -151,7 +156,7 @@ def _residual_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes,
     c, _, points, start, geometry_start, displacement, _ = cell_layout(c_, w_, coordinates_, d)
     coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
     params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
-    positive_only, _ = _material(c_, c, params)
+    positive_only, _, svd_path = _material(c_, c, params)
     work = ws.new_workspace(ws.stack_buffer())
     jacobian = numba.carray(ws.stack_array(9), (d, d))
     inverse = numba.carray(ws.stack_array(9), (d, d))
@@ -178,7 +183,7 @@ def _residual_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes,
         basis = numba.carray(ws.address(c, start + q * nodes * d), nodes * d)
         reference_deformation(displacement, basis, inverse, F, nodes, d)
         _, _, through_svd = point_stress(
-            F, d, model_id, extension_id, positive_only, params, work, P
+            F, d, model_id, extension_id, positive_only, params, svd_path, work, P
         )
         svd_points += through_svd
         for i in range(d):
@@ -235,7 +240,7 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
         c_, w_, coordinates_, d
     )
     params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
-    positive_only, project = _material(c_, c, params)
+    positive_only, project, svd_path = _material(c_, c, params)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     gradients, jacobian, F = _point_views(scratch, nodes, d)
@@ -252,7 +257,7 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
             c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
         )
         _, _, through_svd = point_tangent(
-            F, d, model_id, extension_id, positive_only, params, project, work, P, C
+            F, d, model_id, extension_id, positive_only, params, project, svd_path, work, P, C
         )
         svd_points += through_svd
         for row in range(n):

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dolfinx_invertible.constitutive.parameters import PARAMETER_COUNT
+from dolfinx_invertible.constitutive.svd_path import svd_path_address
 from dolfinx_invertible.fem.kernels.tables import ReferenceTables
 
 __all__ = [
@@ -35,6 +37,7 @@ __all__ = [
     "POINTS_SLOT",
     "POSITIVE_ONLY_SLOT",
     "PROJECT_SLOT",
+    "SVD_PATH_SLOT",
     "USER_CONSTANTS_SLOT",
     "WEIGHTS_START",
     "pack_constants",
@@ -50,10 +53,10 @@ EXTENSION_SLOT = 5  # registry id of the extension
 POSITIVE_ONLY_SLOT = 6  # 1.0: the energy is undefined at J <= 0
 PROJECT_SLOT = 7  # 1.0: SPD-projected tangent
 COUNTERS_SLOT = 8  # address (as float64 bits) of the path-counter row the kernels count into
-PARAMETER_COUNT = 4  # Material.parameters: [μ, λ, ε, k]
+SVD_PATH_SLOT = 9  # address (as float64 bits) of the material's SVD path (constitutive.svd_path)
 # Where each parameter is read: NO_SOURCE (the value packed below), an offset into the user's
 # Constants that DOLFINx packs after this array, or (k only) DERIVED_STIFFNESS, 20·E(μ, λ).
-PARAMETER_SOURCES_SLOT = 9
+PARAMETER_SOURCES_SLOT = 10
 USER_CONSTANTS_SLOT = PARAMETER_SOURCES_SLOT + PARAMETER_COUNT  # how many values follow
 HEADER_SIZE = USER_CONSTANTS_SLOT + 1
 NO_SOURCE = -1.0
@@ -66,6 +69,11 @@ WEIGHTS_START = PARAMETERS_START + PARAMETER_COUNT
 
 #: Largest number of nodes per cell the kernels' stack scratch is sized for (Q2 hexahedra).
 MAX_NODES = 27
+
+
+def _bits(address: int) -> float:
+    """Return the float64 with the bits of ``address`` (the constants array is float64)."""
+    return np.array([address], dtype=np.int64).view(np.float64)[0]
 
 
 def pack_constants(
@@ -105,17 +113,19 @@ def pack_constants(
         raise ValueError(f"the kernels support at most {MAX_NODES} nodes per cell, got {largest}")
     address = 0.0
     if counters is not None:
-        address = np.array([counters.ctypes.data], dtype=np.int64).view(np.float64)[0]
+        address = _bits(counters.ctypes.data)
+    model_id, extension_id = material.model.model_id, material.extension_id
     header = np.zeros(HEADER_SIZE)
     header[DIMENSION_SLOT] = dimension
     header[NODES_SLOT] = nodes
     header[POINTS_SLOT] = points
     header[GEOMETRY_NODES_SLOT] = geometry_nodes
-    header[MODEL_SLOT] = material.model.model_id
-    header[EXTENSION_SLOT] = material.extension_id
+    header[MODEL_SLOT] = model_id
+    header[EXTENSION_SLOT] = extension_id
     header[POSITIVE_ONLY_SLOT] = float(material.positive_only)
     header[PROJECT_SLOT] = float(project)
     header[COUNTERS_SLOT] = address
+    header[SVD_PATH_SLOT] = _bits(svd_path_address(model_id, extension_id, dimension))
     header[PARAMETER_SOURCES_SLOT : PARAMETER_SOURCES_SLOT + PARAMETER_COUNT] = (
         NO_SOURCE if sources is None else sources
     )

@@ -28,6 +28,7 @@ __all__ = [
     "count_points",
     "counter_row",
     "counts_by_kind",
+    "integer_from_bits",
 ]
 
 #: The kernels, in the order of their counter fields.
@@ -69,6 +70,16 @@ def _pointer_from_bits(typingctx, bits):
         return builder.inttoptr(integer, context.get_value_type(signature.return_type))
 
     return types.CPointer(types.float64)(types.float64), codegen
+
+
+@intrinsic
+def integer_from_bits(typingctx, bits):
+    """Reinterpret the float64 ``bits`` as an int64 (an address the constants carry)."""
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return types.int64(types.float64), codegen
 
 
 @intrinsic

@@ -1,0 +1,112 @@
+"""The SVD path of a point, compiled once per material as a C function called through its address.
+
+A point that the invariant fast path cannot settle takes the SVD: U σ V, the extended energy
+Ψ̂ext(σ) with its derivatives, then P and the (projected) tangent from them. That chain is most
+of a material's code. Called as an ordinary compiled function it would be linked into every
+caller (the point functions, each cell kernel, each batch loop, each C entry) and optimised and
+compiled to machine code again in each, since numba compiles every function's module with all
+of its callees. As a C function (one per model, extension and dimension, in numba's disk cache)
+it is compiled once; callers pass its address at run time: the cell kernels read it from their
+constants header, the batch loops take it as an argument. An address baked into compiled code
+would differ from process to process and defeat the disk cache.
+
+The region of the point comes back in the workspace's ``REGION`` slot, U, σ, V and the σ-space
+derivatives in their own slots, as on the direct path.
+"""
+
+from __future__ import annotations
+
+import numba
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+
+from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.parameters import PARAMETER_COUNT
+from dolfinx_invertible.constitutive.principal import UNDEFINED_REGION, principal_derivatives
+from dolfinx_invertible.constitutive.svd import polar_svd_point
+from dolfinx_invertible.constitutive.tangent import stress_derivative, workspace_first_piola
+
+__all__ = ["call_svd_path", "svd_path_address"]
+
+_POINTER = types.CPointer(types.float64)
+# F, positive_only, params, project, order, work, P, C -> Ψ
+_SIGNATURE = types.float64(
+    _POINTER, types.int64, _POINTER, types.int64, types.int64, _POINTER, _POINTER, _POINTER
+)
+_COMPILED: dict[tuple[int, int, int], object] = {}
+
+
+# The ids and the dimension are captured integers, literals inside (numba keys its disk cache on
+# their values, as for the cell kernels' entries).
+def _entry(model_id: int, extension_id: int, d: int):
+    def svd_path(F_, positive_only, params_, project, order, work_, P_, C_):
+        F = numba.carray(F_, (d, d))
+        params = numba.carray(params_, PARAMETER_COUNT)
+        work = numba.carray(work_, ws.WORKSPACE_SIZE)
+        sigma = ws.vector(work, ws.SIGMA, d)
+        polar_svd_point(F, d, ws.matrix(work, ws.U, d), sigma, ws.matrix(work, ws.V, d))
+        psi, region = principal_derivatives(
+            model_id, extension_id, positive_only != 0, sigma, d, params, order, work
+        )
+        if order >= 1:
+            workspace_first_piola(work, numba.carray(P_, (d, d)), d)
+        if order >= 2:
+            C = numba.carray(C_, (d * d, d * d))
+            if region == UNDEFINED_REGION:
+                C[:, :] = 0.0
+            else:
+                stress_derivative(model_id, region, sigma, d, params, work, project != 0, C)
+        work[ws.REGION] = region
+        return psi
+
+    return svd_path
+
+
+def svd_path_address(model_id: int, extension_id: int, d: int) -> int:
+    """Return the address of the SVD path of a material for d×d F (compiled or loaded once)."""
+    key = (int(model_id), int(extension_id), int(d))
+    if key not in _COMPILED:
+        _COMPILED[key] = numba.cfunc(_SIGNATURE, nopython=True, cache=True)(_entry(*key))
+    return _COMPILED[key].address
+
+
+def _as_int64(builder, value, value_type):
+    if isinstance(value_type, types.Boolean):
+        return builder.zext(value, ir.IntType(64))
+    width = value.type.width
+    if width < 64:
+        return builder.sext(value, ir.IntType(64))
+    return builder.trunc(value, ir.IntType(64)) if width > 64 else value
+
+
+@intrinsic
+def call_svd_path(typingctx, address, F, positive_only, params, project, order, work, P, C):
+    """Run the SVD path at ``address`` (:func:`svd_path_address`) on F; return Ψ.
+
+    F, params, work, P and C are contiguous arrays (P and C are written only up to ``order``:
+    a caller without them may pass ``work``); the flags and the order are booleans or integers.
+    """
+    arrays = (1, 3, 6, 7, 8)
+    integers = (0, 2, 4, 5)
+
+    def codegen(context, builder, signature, args):
+        pointer = ir.PointerType(ir.DoubleType())
+        integer = ir.IntType(64)
+        function_type = ir.FunctionType(
+            ir.DoubleType(),
+            [pointer, integer, pointer, integer, integer, pointer, pointer, pointer],
+        )
+        values = {}
+        for index in arrays:
+            array = context.make_array(signature.args[index])(context, builder, args[index])
+            values[index] = array.data
+        for index in integers:
+            values[index] = _as_int64(builder, args[index], signature.args[index])
+        function = builder.inttoptr(values[0], function_type.as_pointer())
+        return builder.call(function, [values[index] for index in range(1, 9)])
+
+    return (
+        types.float64(address, F, positive_only, params, project, order, work, P, C),
+        codegen,
+    )
