@@ -3,7 +3,9 @@
 These compiled functions are the single implementation behind :class:`~dolfinx_invertible.Material`
 and the DOLFINx cell kernels. The model and extension ids and the dimension ``d`` of F are
 compile-time literals (:mod:`~dolfinx_invertible.constitutive.literal`): each material compiles
-its own chain, for the dimension in use only. A point's status is its region code (see
+its own chain, for the dimension in use only. A point the invariant fast path does not settle
+takes the material's SVD path, a C function called through the address the caller passes
+(:mod:`~dolfinx_invertible.constitutive.svd_path`). A point's status is its region code (see
 :func:`~dolfinx_invertible.constitutive.principal.principal_derivatives`).
 """
 
