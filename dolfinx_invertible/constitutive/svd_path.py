@@ -84,11 +84,17 @@ def _as_int64(builder, value, value_type):
 def call_svd_path(typingctx, address, F, positive_only, params, project, order, work, P, C):
     """Run the SVD path at ``address`` (:func:`svd_path_address`) on F; return Ψ.
 
-    F, params, work, P and C are contiguous arrays (P and C are written only up to ``order``:
-    a caller without them may pass ``work``); the flags and the order are booleans or integers.
+    F, params, work, P and C are C-contiguous arrays (P and C are written only up to
+    ``order``: a caller without them may pass ``work``); the flags and the order are booleans
+    or integers.
     """
     arrays = (1, 3, 6, 7, 8)
     integers = (0, 2, 4, 5)
+    given = (address, F, positive_only, params, project, order, work, P, C)
+    # The C function reads each array from its first element on: a strided view would be read
+    # wrongly, so it does not compile.
+    if not all(isinstance(given[i], types.Array) and given[i].layout == "C" for i in arrays):
+        return None
 
     def codegen(context, builder, signature, args):
         pointer = ir.PointerType(ir.DoubleType())
