@@ -21,11 +21,11 @@ import argparse
 import statistics
 import time
 
-import numba
 import numpy as np
 
 from dolfinx_invertible.bench import common
 from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.constitutive.compiled import python_callable
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent
 from dolfinx_invertible.constitutive.principal import principal_derivatives
 from dolfinx_invertible.constitutive.svd import polar_svd_point
@@ -38,7 +38,7 @@ STRETCHES = {
 }
 
 
-@numba.njit(cache=True)
+@python_callable
 def _svd_stage(F):
     work = ws.new_workspace(ws.stack_buffer())
     checksum = 0.0
@@ -94,7 +94,7 @@ def _stage_functions(model_id: int, extension_id: int):
             svd_points += through_svd
         return checksum, svd_points
 
-    functions = (numba.njit(cache=True)(principal_stage), numba.njit(cache=True)(point_stage))
+    functions = (python_callable(principal_stage), python_callable(point_stage))
     _STAGE_FUNCTIONS[key] = functions
     return functions
 

@@ -11,11 +11,10 @@ takes the material's SVD path, a C function called through the address the calle
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.compiled import compiled_only
+from dolfinx_invertible.constitutive.compiled import compiled_only, python_callable
 from dolfinx_invertible.constitutive.invariants import (
     invariant_energy,
     invariant_stress,
@@ -258,7 +257,7 @@ def _batch_entry(kind: str, model_id: int, extension_id: int, d: int):
                 region,
             )  # fmt: skip
 
-    return numba.njit(cache=True)(entry)
+    return python_callable(entry)
 
 
 def batch(kind: str, model_id: int, extension_id: int, d: int):

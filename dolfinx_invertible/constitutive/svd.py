@@ -19,10 +19,9 @@ deficient.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from dolfinx_invertible.constitutive.compiled import compiled_only
+from dolfinx_invertible.constitutive.compiled import compiled_only, python_callable
 from dolfinx_invertible.constitutive.literal import dispatch_on_dimension
 from dolfinx_invertible.constitutive.symmetric3 import angle, cross, dot, null_vector, spread
 
@@ -394,7 +393,7 @@ _POLAR_SVD = {2: _polar_svd_2, 3: _polar_svd_3}
 dispatch_on_dimension(polar_svd_point, _POLAR_SVD)
 
 
-@numba.njit(cache=True)
+@python_callable
 def _polar_svd_batch(F, d, U, sigma, V):
     for n in range(F.shape[0]):
         polar_svd_point(F[n], d, U[n], sigma[n], V[n])

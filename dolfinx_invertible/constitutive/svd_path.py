@@ -10,6 +10,9 @@ it is compiled once; callers pass its address at run time: the cell kernels read
 constants header, the batch loops take it as an argument. An address baked into compiled code
 would differ from process to process and defeat the disk cache.
 
+A cold process can compile the SVD path in a helper process (:func:`compile_svd_path_ahead`)
+while it compiles the cell kernels, which do not need it until they run.
+
 The region of the point comes back in the workspace's ``REGION`` slot, U, σ, V and the σ-space
 derivatives in their own slots, as on the direct path.
 """
@@ -21,13 +24,14 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from dolfinx_invertible.constitutive import compiled
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.parameters import PARAMETER_COUNT
 from dolfinx_invertible.constitutive.principal import UNDEFINED_REGION, principal_derivatives
 from dolfinx_invertible.constitutive.svd import polar_svd_point
 from dolfinx_invertible.constitutive.tangent import stress_derivative, workspace_first_piola
 
-__all__ = ["call_svd_path", "svd_path_address"]
+__all__ = ["call_svd_path", "compile_svd_path_ahead", "svd_path_address"]
 
 _POINTER = types.CPointer(types.float64)
 # F, positive_only, params, project, order, work, P, C -> Ψ
@@ -35,6 +39,7 @@ _SIGNATURE = types.float64(
     _POINTER, types.int64, _POINTER, types.int64, types.int64, _POINTER, _POINTER, _POINTER
 )
 _COMPILED: dict[tuple[int, int, int], object] = {}
+_HELPERS: dict[tuple[int, int, int], object] = {}
 
 
 # The ids and the dimension are captured integers, literals inside (numba keys its disk cache on
@@ -67,8 +72,29 @@ def svd_path_address(model_id: int, extension_id: int, d: int) -> int:
     """Return the address of the SVD path of a material for d×d F (compiled or loaded once)."""
     key = (int(model_id), int(extension_id), int(d))
     if key not in _COMPILED:
-        _COMPILED[key] = numba.cfunc(_SIGNATURE, nopython=True, cache=True)(_entry(*key))
+        # A helper compiling it writes numba's cache; the compilation below then loads from it.
+        compiled.finish_helper(_HELPERS.pop(key, None))
+        _COMPILED[key] = compiled.c_callable(_entry(*key), _SIGNATURE)
     return _COMPILED[key].address
+
+
+def compile_svd_path_ahead(model_id: int, extension_id: int, d: int) -> None:
+    """Start compiling the SVD path in a helper process if it is neither loaded nor cached.
+
+    :func:`svd_path_address` waits for the helper, then loads its result from numba's disk
+    cache. Nothing starts when :func:`~dolfinx_invertible.constitutive.compiled.helpers_allowed`
+    says no; a path already in the disk cache is loaded here.
+    """
+    key = (int(model_id), int(extension_id), int(d))
+    if key in _COMPILED or key in _HELPERS or not compiled.helpers_allowed():
+        return
+    cached = compiled.cached_c_callable(_entry(*key), _SIGNATURE)
+    if cached is not None:
+        _COMPILED[key] = cached
+        return
+    _HELPERS[key] = compiled.start_helper(
+        f"from {__name__} import svd_path_address; svd_path_address{key}"
+    )
 
 
 def _as_int64(builder, value, value_type):

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from mpi4py import MPI
+
 import basix
 import dolfinx
 import numpy as np
 
 from dolfinx_invertible import _compat
 from dolfinx_invertible.constitutive.material import Material
+from dolfinx_invertible.constitutive.svd_path import compile_svd_path_ahead
 from dolfinx_invertible.fem import kernels
 
 __all__ = ["HyperelasticForms", "default_quadrature_degree"]
@@ -147,6 +150,11 @@ class HyperelasticForms:
             ),
         )
         self._forms: dict[str, object] = {}
+        self._svd_path_ready = False
+        # A serial process compiles the SVD path in a helper while it compiles the kernels
+        # (under MPI every rank already compiles on its own core).
+        if MPI.COMM_WORLD.size == 1:
+            compile_svd_path_ahead(material.model.model_id, material.extension_id, gdim)
 
     def _sources(self, material: Material):
         """Where the kernels read each parameter: an offset into the user Constants, or not."""
@@ -173,6 +181,9 @@ class HyperelasticForms:
             address = kernels.kernel_address(
                 kind, mesh.geometry.dim, self.material.model.model_id, self.material.extension_id
             )
+            if not self._svd_path_ready:
+                kernels.set_svd_path(self.constants.value, self.material, mesh.geometry.dim)
+                self._svd_path_ready = True
             self._forms[kind] = _compat.custom_form(
                 spaces, address, [self.u], [self.constants, *self.parameter_constants], mesh
             )

@@ -14,11 +14,11 @@ from typing import Protocol
 from mpi4py import MPI
 
 import dolfinx
-import numba
 import numpy as np
 import ufl
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.constitutive.compiled import python_callable
 from dolfinx_invertible.constitutive.polynomial import first_root_in_unit_interval
 from dolfinx_invertible.fem.forms import default_quadrature_degree
 
@@ -33,7 +33,7 @@ class StepLimit(Protocol):
         ...
 
 
-@numba.njit(cache=True)
+@python_callable
 def volume_polynomial(F, D):
     """Coefficients (c₀, c₁, c₂, c₃) of det(F + α D) = c₀ + c₁α + c₂α² + c₃α³."""
     if F.shape[0] == 2:
@@ -62,7 +62,7 @@ def volume_polynomial(F, D):
     return c0, c1, c2, c3
 
 
-@numba.njit(cache=True)
+@python_callable
 def _largest_step(gradients, sign, fraction):
     """Largest α ≤ 1 keeping det(F + α δF) > fraction · det F at every point.
 

@@ -26,6 +26,7 @@ from dolfinx_invertible.fem.kernels.constants import (
     PARAMETERS_START,
     PROJECT_SLOT,
     pack_constants,
+    set_svd_path,
 )
 from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS, counter_row, counts_by_kind
 from dolfinx_invertible.fem.kernels.tables import ReferenceTables
@@ -50,4 +51,5 @@ __all__ = [
     "kernel_address",
     "pack_constants",
     "precompile",
+    "set_svd_path",
 ]

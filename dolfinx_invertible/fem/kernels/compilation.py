@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import time
 
-import numba
-
+from dolfinx_invertible.constitutive.compiled import c_callable
 from dolfinx_invertible.constitutive.svd_path import svd_path_address
 from dolfinx_invertible.fem.kernels.cells import cell_energy, cell_residual, cell_tangent
 from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS
@@ -85,7 +84,7 @@ def compile_kernel(entries: tuple) -> object:
     from dolfinx_invertible import _compat
 
     entry = entries[1] if _compat.KERNEL_TAKES_CUSTOM_DATA else entries[0]
-    return numba.cfunc(_compat.KERNEL_SIGNATURE, nopython=True, cache=True)(entry)
+    return c_callable(entry, _compat.KERNEL_SIGNATURE)
 
 
 def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) -> int:

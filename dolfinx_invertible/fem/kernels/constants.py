@@ -41,6 +41,7 @@ __all__ = [
     "USER_CONSTANTS_SLOT",
     "WEIGHTS_START",
     "pack_constants",
+    "set_svd_path",
 ]
 
 # Header slots, in order.
@@ -105,6 +106,9 @@ def pack_constants(
         array, or :data:`DERIVED_STIFFNESS`; ``None``: every parameter from this array.
     user_constants
         Number of values DOLFINx packs after this array (the user's Constants).
+
+    The :data:`SVD_PATH_SLOT` stays zero: :func:`set_svd_path` fills it in before the kernels
+    first run, so that the SVD path can compile while the kernels do.
     """
     points, nodes, _ = tables.basis_derivatives.shape
     geometry_nodes = tables.geometry_derivatives.shape[1]
@@ -125,7 +129,6 @@ def pack_constants(
     header[POSITIVE_ONLY_SLOT] = float(material.positive_only)
     header[PROJECT_SLOT] = float(project)
     header[COUNTERS_SLOT] = address
-    header[SVD_PATH_SLOT] = _bits(svd_path_address(model_id, extension_id, dimension))
     header[PARAMETER_SOURCES_SLOT : PARAMETER_SOURCES_SLOT + PARAMETER_COUNT] = (
         NO_SOURCE if sources is None else sources
     )
@@ -139,3 +142,13 @@ def pack_constants(
             tables.geometry_derivatives.ravel(),
         ]
     )
+
+
+def set_svd_path(constants: np.ndarray, material, dimension: int) -> None:
+    """Write the address of the material's SVD path into packed ``constants``.
+
+    Compiles the SVD path, loads it from numba's disk cache, or waits for the helper process
+    compiling it (:func:`~dolfinx_invertible.constitutive.svd_path.compile_svd_path_ahead`).
+    """
+    address = svd_path_address(material.model.model_id, material.extension_id, dimension)
+    constants[SVD_PATH_SLOT] = _bits(address)

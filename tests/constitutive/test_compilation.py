@@ -1,0 +1,211 @@
+"""How the package compiles: compiled-only functions keep IR, the SVD path may compile in a helper.
+
+Each check that needs an empty numba cache runs in a child process on its own ``NUMBA_CACHE_DIR``
+(numba reads it at import).
+"""
+
+import logging
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+
+import dolfinx_invertible as di
+from dolfinx_invertible.constitutive import compiled, svd_path
+
+_MODULE = """
+import numba
+from dolfinx_invertible.constitutive.compiled import compiled_only
+
+
+@compiled_only
+def inner(x):
+    return 3.0 * x + 1.0
+
+
+@numba.njit(cache=True)
+def first_caller(x):
+    return inner(x) * 2.0
+
+
+@numba.njit(cache=True)
+def second_caller(x):
+    return inner(x) - 1.0
+"""
+
+
+def _run(script: str, cache, cwd=None) -> str:
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    completed = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(script)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env=environment,
+        cwd=cwd,
+    )
+    assert completed.returncode == 0, completed.stderr[-3000:]
+    return completed.stdout
+
+
+def test_compiled_only_function_has_ir_but_no_machine_code(tmp_path):
+    (tmp_path / "chain.py").write_text(_MODULE)
+    script = """
+        import numba
+        import pytest
+        import chain
+
+        assert chain.first_caller(2.0) == 14.0
+        (signature, result), = chain.inner.overloads.items()
+        library = result.library
+        assert type(library).__name__ == "LinkOnlyCodeLibrary"
+        # No machine code of its own: the caller linked its IR in.
+        assert library.get_pointer_to_function(result.fndesc.llvm_func_name) == 0
+        assert result.fndesc.llvm_func_name in library.get_llvm_str()
+        with pytest.raises(TypeError, match="compiled code"):
+            chain.inner(2.0)
+        print(sum(chain.inner.stats.cache_misses.values()))
+    """
+    assert _run(script, tmp_path / "cache", cwd=tmp_path).split()[-1] == "1"
+    # A new caller in a new process loads the callee's IR from the disk cache and links it.
+    script = """
+        import chain
+
+        assert chain.second_caller(2.0) == 6.0
+        assert chain.first_caller(2.0) == 14.0
+        hits = chain.inner.stats.cache_hits, chain.first_caller.stats.cache_hits
+        print(*(sum(counts.values()) for counts in hits))
+    """
+    assert _run(script, tmp_path / "cache", cwd=tmp_path).split()[-2:] == ["1", "1"]
+
+
+def test_processes_name_their_compiled_functions_apart(tmp_path):
+    """The same closure compiled first thing in two processes gets two machine-code names.
+
+    numba names compiled code by qualified name, argument types and a per-process counter, and
+    the JIT binds a cached object's calls by name: with equal counters, two specialisations of
+    one closure compiled in two processes (the 2D and 3D SVD paths, say) could share a name, and
+    a process loading both would run one's code for the other.
+    """
+    script = """
+        import numba
+        import dolfinx_invertible.constitutive.compiled
+
+        def specialise(scale):
+            return numba.njit(lambda x: scale * x)
+
+        function = specialise(2.0)
+        assert function(1.0) == 2.0
+        (result,) = function.overloads.values()
+        print(result.fndesc.mangled_name)
+    """
+    names = {_run(script, tmp_path / f"cache{index}").split()[-1] for index in range(2)}
+    assert len(names) == 2
+
+
+_RACING = """
+import sys
+
+from dolfinx_invertible.constitutive.compiled import python_callable
+
+
+def specialise(k):
+    def scaled(x):
+        return x * k + k
+
+    return python_callable(scaled)
+
+
+first, step = int(sys.argv[1]), int(sys.argv[2])
+for k in range(first, 80, step):
+    assert specialise(float(k))(2.0) == 3.0 * k, k
+"""
+
+
+def test_concurrent_saves_of_one_function_keep_its_cache_consistent(tmp_path):
+    """Two processes cache different specialisations of one function at once; a third loads all.
+
+    The specialisations share one index file. Saved without the lock, the index could name a
+    data file holding another specialisation (numba's plain cache returned k = 49's code for
+    k = 48 here, in one run of two).
+    """
+    (tmp_path / "racing.py").write_text(_RACING)
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    for _ in range(2):
+        shutil.rmtree(tmp_path / "cache", ignore_errors=True)
+        writers = [
+            subprocess.Popen(
+                [sys.executable, "racing.py", str(first), "2"], cwd=tmp_path, env=environment
+            )
+            for first in (0, 1)
+        ]
+        assert [writer.wait(timeout=600) for writer in writers] == [0, 0]
+        reader = subprocess.run(
+            [sys.executable, "racing.py", "0", "1"],
+            cwd=tmp_path,
+            env=environment,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert reader.returncode == 0, reader.stderr[-2000:]
+
+
+def test_svd_path_compiled_in_a_helper_is_loaded_from_the_cache(tmp_path):
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 2)
+    script = f"""
+        import numpy as np
+        import dolfinx_invertible as di
+        from dolfinx_invertible.constitutive import svd_path
+
+        key = {key}
+        svd_path.compile_svd_path_ahead(*key)
+        helper = svd_path._HELPERS[key]
+        assert helper is not None and helper.poll() is None  # still compiling
+        svd_path.svd_path_address(*key)
+        assert helper.returncode == 0
+        # This process loaded what the helper wrote instead of compiling it.
+        assert svd_path._COMPILED[key].cache_hits == 1
+        material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+        F = np.array([[0.8, 0.3], [0.1, -0.4]])
+        print(repr(material.stress(F).ravel().tolist()))
+    """
+    cache = tmp_path / "cache"
+    stress = _run(script, cache).strip().splitlines()[-1]
+    # On a cache that holds it, nothing starts: the path is loaded on the spot.
+    script = f"""
+        from dolfinx_invertible.constitutive import svd_path
+
+        svd_path.compile_svd_path_ahead(*{key})
+        assert not svd_path._HELPERS
+        assert svd_path._COMPILED[{key}].cache_hits == 1
+    """
+    _run(script, cache)
+    expected = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2()).stress(
+        np.array([[0.8, 0.3], [0.1, -0.4]])
+    )
+    np.testing.assert_allclose(eval(stress), expected.ravel(), rtol=1e-13, atol=1e-13)
+
+
+def test_failed_helper_leaves_the_compilation_to_the_caller(monkeypatch, caplog):
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 3)
+    monkeypatch.delitem(svd_path._COMPILED, key, raising=False)
+    monkeypatch.setitem(svd_path._HELPERS, key, compiled.start_helper("raise SystemExit(3)"))
+    with caplog.at_level(logging.WARNING):
+        address = svd_path.svd_path_address(*key)
+    assert address != 0 and key not in svd_path._HELPERS
+    assert "exit 3" in caplog.text
+    F = np.array([[0.9, 0.1, 0.0], [0.0, 1.1, 0.2], [0.0, 0.0, -0.5]])
+    assert np.all(np.isfinite(material.stress(F)))
+
+
+def test_helpers_can_be_switched_off(monkeypatch):
+    monkeypatch.setenv(compiled.HELPER_VARIABLE, "0")
+    assert not compiled.helpers_allowed()
+    monkeypatch.setenv(compiled.HELPER_VARIABLE, "1")
+    assert compiled.helpers_allowed() == (len(os.sched_getaffinity(0)) > 1)
