@@ -2,12 +2,13 @@
 
 With every function numba compiles, and keeps in its disk cache, a CPython wrapper (unboxing
 the arguments, boxing the result) and a C wrapper. A function that only other compiled code
-calls needs neither: :func:`compiled_only` leaves both out, which cut the cold start to the
-first residual and tangent by about a fifth (docs/performance.md). Such a function called from
-Python would jump through a null entry point, so its dispatcher refuses the call with a
-``TypeError`` instead. Functions that Python calls (the batch loops' entries, the helpers the
-tests call one by one) are :func:`python_callable`, the C entry points :func:`c_callable`.
-All three save to numba's disk cache under a lock (``_LockedFunctionCache``).
+calls needs neither, nor machine code of its own (its callers link its LLVM IR in and generate
+code for the whole chain): :func:`compiled_only` leaves all three out (docs/performance.md has
+what each saves). Such a function called from Python would jump through a null entry point, so
+its dispatcher refuses the call with a ``TypeError`` instead. Functions that Python calls (the
+batch loops' entries, the helpers the tests call one by one) are :func:`python_callable`, the C
+entry points :func:`c_callable`. All three save to numba's disk cache under a lock
+(``_LockedFunctionCache``).
 
 A cold process can also hand an independent compilation to a helper process
 (:func:`start_helper`): numba compiles under one lock per process, so two compilations in one
@@ -59,7 +60,7 @@ def _distinct_function_numbers() -> None:
     Two closures of one name (a function specialised per model, extension and dimension) compiled
     in two processes could then carry the same name for different code, and a process loading
     both from the disk cache would run the first one's code for both (the 2D and 3D SVD paths
-    would give wrong stresses, without an error). Random starts 2⁴⁸ apart keep them distinct.
+    would give wrong stresses, without an error). A random start among 2⁴⁸ keeps them apart.
     """
     from numba.core import bytecode
 

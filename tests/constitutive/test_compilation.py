@@ -39,6 +39,10 @@ def second_caller(x):
 
 def _run(script: str, cache, cwd=None) -> str:
     environment = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    if cwd is not None:  # the scripts import modules written there, also under PYTHONSAFEPATH
+        environment["PYTHONPATH"] = os.pathsep.join(
+            [str(cwd), *filter(None, [os.environ.get("PYTHONPATH")])]
+        )
     completed = subprocess.run(
         [sys.executable, "-c", textwrap.dedent(script)],
         capture_output=True,
