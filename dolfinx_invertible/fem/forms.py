@@ -150,7 +150,6 @@ class HyperelasticForms:
             ),
         )
         self._forms: dict[str, object] = {}
-        self._svd_path_ready = False
         # A serial process compiles the SVD path in a helper while it compiles the kernels
         # (under MPI every rank already compiles on its own core).
         if MPI.COMM_WORLD.size == 1:
@@ -181,9 +180,8 @@ class HyperelasticForms:
             address = kernels.kernel_address(
                 kind, mesh.geometry.dim, self.material.model.model_id, self.material.extension_id
             )
-            if not self._svd_path_ready:
+            if not self._forms:  # the kernels need the SVD path's address before they first run
                 kernels.set_svd_path(self.constants.value, self.material, mesh.geometry.dim)
-                self._svd_path_ready = True
             self._forms[kind] = _compat.custom_form(
                 spaces, address, [self.u], [self.constants, *self.parameter_constants], mesh
             )
