@@ -11,10 +11,10 @@ entry points :func:`c_callable`. All three save to numba's disk cache under a lo
 (``_LockedFunctionCache``).
 
 A cold process can also hand an independent compilation to a helper process
-(:func:`start_helper`): numba compiles under one lock per process, so two compilations in one
-process run one after the other, while a helper fills the shared disk cache on the other core.
-The process then loads the helper's result from the cache (:func:`finish_helper`), or compiles
-it itself if the helper failed.
+(:func:`compile_ahead`): numba compiles under one lock per process, so two compilations in one
+process run one after the other, while a helper fills the shared disk cache on another core.
+The process then loads the helper's result from the cache (:func:`wait_for_helper`), or
+compiles it itself if the helper failed.
 """
 
 from __future__ import annotations
@@ -36,11 +36,14 @@ __all__ = [
     "HELPER_VARIABLE",
     "c_callable",
     "cached_c_callable",
+    "compile_ahead",
     "compiled_only",
+    "compiling_ahead",
     "finish_helper",
     "helpers_allowed",
     "python_callable",
     "start_helper",
+    "wait_for_helper",
 ]
 
 #: Environment variable that, set to ``0``, keeps every compilation in the calling process.
@@ -50,6 +53,8 @@ HELPER_TIMEOUT = 900.0
 _PACKAGE_PARENT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 _LOG = logging.getLogger(__name__)
 _RUNNING: set[subprocess.Popen] = set()
+# The helpers of compile_ahead by their callers' keys (None: the helper did not start).
+_AHEAD: dict[tuple, subprocess.Popen | None] = {}
 
 
 def _distinct_function_numbers() -> None:
@@ -317,6 +322,32 @@ def finish_helper(process: subprocess.Popen | None) -> None:
             process.returncode,
             errors.decode(errors="replace").strip()[-2000:],
         )
+
+
+def compile_ahead(key: tuple, function: Callable, signature, statement: str) -> object | None:
+    """Load a C callable from numba's disk cache, or start compiling it in a helper process.
+
+    Returns the :func:`c_callable` of ``function`` if the disk cache holds it. Otherwise runs
+    the Python ``statement``, which compiles it into the cache, in a helper known by ``key``,
+    and returns ``None``. Nothing is loaded or started (``None``) when a helper of that key is
+    known or :func:`helpers_allowed` says no.
+    """
+    if key in _AHEAD or not helpers_allowed():
+        return None
+    loaded = cached_c_callable(function, signature)
+    if loaded is None:
+        _AHEAD[key] = start_helper(statement)
+    return loaded
+
+
+def compiling_ahead(key: tuple) -> bool:
+    """Whether a helper of :func:`compile_ahead` was started for ``key`` and not waited for."""
+    return key in _AHEAD
+
+
+def wait_for_helper(key: tuple) -> None:
+    """Wait for the helper of ``key``, if any (:func:`finish_helper`); then it is forgotten."""
+    finish_helper(_AHEAD.pop(key, None))
 
 
 def _stop(process: subprocess.Popen) -> None:

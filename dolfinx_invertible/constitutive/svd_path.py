@@ -11,13 +11,20 @@ constants header, the batch loops take it as an argument. An address baked into 
 would differ from process to process and defeat the disk cache.
 
 A cold process can compile the SVD path in a helper process (:func:`compile_svd_path_ahead`)
-while it compiles the cell kernels, which do not need it until they run.
+while it compiles the cell kernels, which do not need it until they run. Until then the kernels
+call it through a stand-in (:func:`bind_svd_path`): the lazy binding of a dynamic linker, whose
+first call waits for the helper and points the caller at the real function.
 
 The region of the point comes back in the workspace's ``REGION`` slot, U, σ, V and the σ-space
 derivatives in their own slots, as on the direct path.
 """
 
 from __future__ import annotations
+
+import ctypes
+import logging
+import math
+from collections.abc import Callable
 
 import numba
 from llvmlite import ir
@@ -31,15 +38,34 @@ from dolfinx_invertible.constitutive.principal import UNDEFINED_REGION, principa
 from dolfinx_invertible.constitutive.svd import polar_svd_point
 from dolfinx_invertible.constitutive.tangent import stress_derivative, workspace_first_piola
 
-__all__ = ["call_svd_path", "compile_svd_path_ahead", "svd_path_address"]
+__all__ = [
+    "bind_svd_path",
+    "call_svd_path",
+    "compile_svd_path_ahead",
+    "svd_path_address",
+]
 
 _POINTER = types.CPointer(types.float64)
 # F, positive_only, params, project, order, work, P, C -> Ψ
 _SIGNATURE = types.float64(
     _POINTER, types.int64, _POINTER, types.int64, types.int64, _POINTER, _POINTER, _POINTER
 )
+_DOUBLES = ctypes.POINTER(ctypes.c_double)
+_C_TYPE = ctypes.CFUNCTYPE(
+    ctypes.c_double,
+    _DOUBLES,
+    ctypes.c_int64,
+    _DOUBLES,
+    ctypes.c_int64,
+    ctypes.c_int64,
+    _DOUBLES,
+    _DOUBLES,
+    _DOUBLES,
+)
 _COMPILED: dict[tuple[int, int, int], object] = {}
-_HELPERS: dict[tuple[int, int, int], object] = {}
+# Per material whose helper runs: the stand-in C function and the callers waiting to be bound.
+_STAND_INS: dict[tuple[int, int, int], tuple[object, list[Callable[[int], None]]]] = {}
+_LOG = logging.getLogger(__name__)
 
 
 # The ids and the dimension are captured integers, literals inside (numba keys its disk cache on
@@ -73,7 +99,7 @@ def svd_path_address(model_id: int, extension_id: int, d: int) -> int:
     key = (int(model_id), int(extension_id), int(d))
     if key not in _COMPILED:
         # A helper compiling it writes numba's cache; the compilation below then loads from it.
-        compiled.finish_helper(_HELPERS.pop(key, None))
+        compiled.wait_for_helper(_helper_key(*key))
         _COMPILED[key] = compiled.c_callable(_entry(*key), _SIGNATURE)
     return _COMPILED[key].address
 
@@ -86,15 +112,58 @@ def compile_svd_path_ahead(model_id: int, extension_id: int, d: int) -> None:
     says no; a path already in the disk cache is loaded here.
     """
     key = (int(model_id), int(extension_id), int(d))
-    if key in _COMPILED or key in _HELPERS or not compiled.helpers_allowed():
+    if key not in _COMPILED:
+        statement = f"from {__name__} import svd_path_address; svd_path_address{key}"
+        loaded = compiled.compile_ahead(_helper_key(*key), _entry(*key), _SIGNATURE, statement)
+        if loaded is not None:
+            _COMPILED[key] = loaded
+
+
+def _helper_key(model_id: int, extension_id: int, d: int) -> tuple:
+    """Return the key of the helper compiling this SVD path (``compiled.compile_ahead``)."""
+    return ("svd path", int(model_id), int(extension_id), int(d))
+
+
+def bind_svd_path(model_id: int, extension_id: int, d: int, bind: Callable[[int], None]) -> None:
+    """Give ``bind`` the address to call the material's SVD path through, without waiting.
+
+    Once the path is loaded, or when no helper is compiling it (it is then compiled or loaded
+    here), ``bind`` gets its address at once. While a helper compiles it, ``bind`` gets the
+    address of a stand-in with the same C signature, and the real address later: the stand-in's
+    first call waits for the helper, loads the path, passes its address to every ``bind``
+    waiting for it, and forwards the call (as do later calls made before the caller rebinds,
+    such as the rest of an assembly whose constants DOLFINx packed already).
+    """
+    key = (int(model_id), int(extension_id), int(d))
+    if not compiled.compiling_ahead(_helper_key(*key)):
+        bind(svd_path_address(*key))
         return
-    cached = compiled.cached_c_callable(_entry(*key), _SIGNATURE)
-    if cached is not None:
-        _COMPILED[key] = cached
-        return
-    _HELPERS[key] = compiled.start_helper(
-        f"from {__name__} import svd_path_address; svd_path_address{key}"
-    )
+    if key not in _STAND_INS:
+        _STAND_INS[key] = (_stand_in(key), [])
+    stand_in, waiting = _STAND_INS[key]
+    waiting.append(bind)
+    bind(ctypes.cast(stand_in, ctypes.c_void_p).value)
+
+
+def _stand_in(key: tuple[int, int, int]):
+    def forward(F, positive_only, params, project, order, work, P, C):
+        try:
+            address = svd_path_address(*key)
+        except Exception:
+            # An exception cannot leave a C callback: NaN in Ψ, P and C fails the solve instead.
+            _LOG.exception("the SVD path %s could not be compiled", key)
+            size = key[2] * key[2]
+            for index in range(size if order >= 1 else 0):
+                P[index] = math.nan
+            for index in range(size * size if order >= 2 else 0):
+                C[index] = math.nan
+            return math.nan
+        waiting = _STAND_INS[key][1]
+        while waiting:
+            waiting.pop()(address)
+        return _C_TYPE(address)(F, positive_only, params, project, order, work, P, C)
+
+    return _C_TYPE(forward)
 
 
 def _as_int64(builder, value, value_type):

@@ -150,10 +150,13 @@ class HyperelasticForms:
             ),
         )
         self._forms: dict[str, object] = {}
-        # A serial process compiles the SVD path in a helper while it compiles the kernels
-        # (under MPI every rank already compiles on its own core).
+        # A serial process compiles the SVD path and the tangent kernel (the two largest, and
+        # every Newton step needs them) in helpers while it compiles the residual kernel; under
+        # MPI every rank already compiles on its own core.
         if MPI.COMM_WORLD.size == 1:
-            compile_svd_path_ahead(material.model.model_id, material.extension_id, gdim)
+            ids = (material.model.model_id, material.extension_id)
+            compile_svd_path_ahead(*ids, gdim)
+            kernels.compile_kernel_ahead("tangent", gdim, *ids)
 
     def _sources(self, material: Material):
         """Where the kernels read each parameter: an offset into the user Constants, or not."""

@@ -11,10 +11,17 @@ import subprocess
 import sys
 import textwrap
 
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem.petsc
 import numpy as np
 
 import dolfinx_invertible as di
+from dolfinx_invertible import _compat
 from dolfinx_invertible.constitutive import compiled, svd_path
+from dolfinx_invertible.constitutive import workspace as ws
+from dolfinx_invertible.fem.kernels.constants import SVD_PATH_SLOT
 
 _MODULE = """
 import numba
@@ -158,22 +165,30 @@ def test_concurrent_saves_of_one_function_keep_its_cache_consistent(tmp_path):
         assert reader.returncode == 0, reader.stderr[-2000:]
 
 
-def test_svd_path_compiled_in_a_helper_is_loaded_from_the_cache(tmp_path):
+def test_compiled_in_a_helper_is_loaded_from_the_cache(tmp_path):
     material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
     key = (material.model.model_id, material.extension_id, 2)
     script = f"""
         import numpy as np
         import dolfinx_invertible as di
-        from dolfinx_invertible.constitutive import svd_path
+        from dolfinx_invertible.constitutive import compiled, svd_path
 
         key = {key}
         svd_path.compile_svd_path_ahead(*key)
-        helper = svd_path._HELPERS[key]
+        helper = compiled._AHEAD[svd_path._helper_key(*key)]
         assert helper is not None and helper.poll() is None  # still compiling
         svd_path.svd_path_address(*key)
         assert helper.returncode == 0
         # This process loaded what the helper wrote instead of compiling it.
         assert svd_path._COMPILED[key].cache_hits == 1
+        # A cell kernel likewise.
+        from dolfinx_invertible.fem.kernels import compilation
+
+        kernel = ("tangent", *key[2:], *key[:2])
+        compilation.compile_kernel_ahead(*kernel)
+        assert compiled.compiling_ahead(("kernel", *kernel))
+        compilation.kernel_address(*kernel)
+        assert not compiled._AHEAD and compilation._COMPILED[kernel].cache_hits == 1
         material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
         F = np.array([[0.8, 0.3], [0.1, -0.4]])
         print(repr(material.stress(F).ravel().tolist()))
@@ -182,10 +197,10 @@ def test_svd_path_compiled_in_a_helper_is_loaded_from_the_cache(tmp_path):
     stress = _run(script, cache).strip().splitlines()[-1]
     # On a cache that holds it, nothing starts: the path is loaded on the spot.
     script = f"""
-        from dolfinx_invertible.constitutive import svd_path
+        from dolfinx_invertible.constitutive import compiled, svd_path
 
         svd_path.compile_svd_path_ahead(*{key})
-        assert not svd_path._HELPERS
+        assert not compiled._AHEAD
         assert svd_path._COMPILED[{key}].cache_hits == 1
     """
     _run(script, cache)
@@ -195,14 +210,100 @@ def test_svd_path_compiled_in_a_helper_is_loaded_from_the_cache(tmp_path):
     np.testing.assert_allclose(eval(stress), expected.ravel(), rtol=1e-13, atol=1e-13)
 
 
+def _pretend_a_helper_compiles(monkeypatch, key) -> None:
+    """Make the SVD path of ``key`` look unready, with a (trivial) helper compiling it."""
+    monkeypatch.delitem(svd_path._COMPILED, key, raising=False)
+    monkeypatch.setitem(compiled._AHEAD, svd_path._helper_key(*key), compiled.start_helper("pass"))
+    monkeypatch.delitem(svd_path._STAND_INS, key, raising=False)
+
+
+def _call(address: int, F: np.ndarray, params: np.ndarray, order: int):
+    d = F.shape[0]
+    work = np.zeros(ws.WORKSPACE_SIZE)
+    P = np.zeros((d, d))
+    C = np.zeros((d * d, d * d))
+
+    def pointer(array):
+        return array.ctypes.data_as(svd_path._DOUBLES)
+
+    psi = svd_path._C_TYPE(address)(
+        pointer(F), 0, pointer(params), 1, order, pointer(work), pointer(P), pointer(C)
+    )
+    return psi, P, C
+
+
+def test_stand_in_binds_the_svd_path_on_its_first_call(monkeypatch):
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 3)
+    F = np.array([[0.9, 0.1, 0.0], [0.0, 1.1, 0.2], [0.0, 0.0, -0.5]])
+    real = _call(svd_path.svd_path_address(*key), F, material.parameters, 2)
+    _pretend_a_helper_compiles(monkeypatch, key)
+    bound = []
+    svd_path.bind_svd_path(*key, bound.append)
+    assert len(bound) == 1 and key not in svd_path._COMPILED  # nothing waited
+    through_stand_in = _call(bound[0], F, material.parameters, 2)
+    assert bound[1:] == [svd_path.svd_path_address(*key)] and bound[0] != bound[1]
+    for value, expected in zip(through_stand_in, real):
+        np.testing.assert_array_equal(value, expected)
+    assert np.all(real[2] != 0.0)
+    # Bound once: the same stand-in no longer has anyone waiting, and a caller bound now gets
+    # the path itself.
+    _call(bound[0], F, material.parameters, 1)
+    assert len(bound) == 2
+    svd_path.bind_svd_path(*key, bound.append)
+    assert bound[2] == bound[1]
+
+
+def test_stand_in_that_cannot_compile_gives_nan(monkeypatch, caplog):
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 2)
+    _pretend_a_helper_compiles(monkeypatch, key)
+    bound = []
+    svd_path.bind_svd_path(*key, bound.append)
+
+    def broken(*_):
+        raise RuntimeError("no compiler today")
+
+    monkeypatch.setattr(svd_path, "svd_path_address", broken)
+    with caplog.at_level(logging.ERROR):
+        psi, P, C = _call(bound[0], np.diag([1.0, -0.5]), material.parameters, 1)
+    assert np.isnan(psi) and np.all(np.isnan(P)) and np.all(C == 0.0)
+    assert "no compiler today" in caplog.text and len(bound) == 1
+
+
+def test_forms_assemble_before_the_helper_is_done(monkeypatch):
+    """The kernels call the SVD path through the stand-in, then through the path itself."""
+    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 3, 2)
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(space)
+    u.interpolate(lambda x: np.stack([-1.6 * x[0] * x[1], 0.1 * x[0]]))  # inverts some cells
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 2)
+    reference_forms = di.HyperelasticForms(u, material)
+    expected = dolfinx.fem.petsc.assemble_vector(reference_forms.residual).array.copy()
+    _pretend_a_helper_compiles(monkeypatch, key)
+    forms = di.HyperelasticForms(u, material)
+    residual = forms.residual
+    stand_in = forms.constants.value[SVD_PATH_SLOT]
+    first = dolfinx.fem.petsc.assemble_vector(residual).array.copy()
+    assert forms.path_counts()["residual"][1] > 0  # points took the SVD path
+    assert forms.constants.value[SVD_PATH_SLOT] != stand_in  # rebound
+    slot = forms.constants.value[SVD_PATH_SLOT : SVD_PATH_SLOT + 1]
+    assert slot.view(np.int64)[0] == svd_path.svd_path_address(*key)
+    second = dolfinx.fem.petsc.assemble_vector(residual).array.copy()
+    np.testing.assert_array_equal(first, expected)
+    np.testing.assert_array_equal(second, expected)
+
+
 def test_failed_helper_leaves_the_compilation_to_the_caller(monkeypatch, caplog):
     material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
     key = (material.model.model_id, material.extension_id, 3)
     monkeypatch.delitem(svd_path._COMPILED, key, raising=False)
-    monkeypatch.setitem(svd_path._HELPERS, key, compiled.start_helper("raise SystemExit(3)"))
+    helper = compiled.start_helper("raise SystemExit(3)")
+    monkeypatch.setitem(compiled._AHEAD, svd_path._helper_key(*key), helper)
     with caplog.at_level(logging.WARNING):
         address = svd_path.svd_path_address(*key)
-    assert address != 0 and key not in svd_path._HELPERS
+    assert address != 0 and not compiled.compiling_ahead(svd_path._helper_key(*key))
     assert "exit 3" in caplog.text
     F = np.array([[0.9, 0.1, 0.0], [0.0, 1.1, 0.2], [0.0, 0.0, -0.5]])
     assert np.all(np.isfinite(material.stress(F)))

@@ -11,6 +11,7 @@
 from dolfinx_invertible.fem.kernels.compilation import (
     DEFAULT_MATERIALS,
     compile_kernel,
+    compile_kernel_ahead,
     compiled_kernels,
     default_materials,
     kernel_address,
@@ -44,6 +45,7 @@ __all__ = [
     "PROJECT_SLOT",
     "ReferenceTables",
     "compile_kernel",
+    "compile_kernel_ahead",
     "compiled_kernels",
     "counter_row",
     "counts_by_kind",

@@ -6,14 +6,15 @@ literals like the dimension, so an entry holds the chain of its material only
 model and extension. Two arities exist because ufcx's ``tabulate_tensor`` gained a
 ``custom_data`` pointer in DOLFINx 0.10; :mod:`~dolfinx_invertible._compat` says which one this
 DOLFINx wants. An entry is compiled only when a form first needs it, so a scene that never asks
-for the energy, say, never compiles its kernel.
+for the energy, say, never compiles its kernel; a serial process can start compiling one in a
+helper process ahead of that (:func:`compile_kernel_ahead`).
 """
 
 from __future__ import annotations
 
 import time
 
-from dolfinx_invertible.constitutive.compiled import c_callable
+from dolfinx_invertible.constitutive import compiled
 from dolfinx_invertible.constitutive.svd_path import svd_path_address
 from dolfinx_invertible.fem.kernels.cells import cell_energy, cell_residual, cell_tangent
 from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS
@@ -21,6 +22,7 @@ from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS
 __all__ = [
     "DEFAULT_MATERIALS",
     "compile_kernel",
+    "compile_kernel_ahead",
     "compiled_kernels",
     "default_materials",
     "kernel_address",
@@ -81,10 +83,27 @@ def compile_kernel(entries: tuple) -> object:
     the one matching :data:`dolfinx_invertible._compat.KERNEL_TAKES_CUSTOM_DATA` is compiled
     (or loaded from numba's disk cache).
     """
+    return compiled.c_callable(*_entry_and_signature(entries))
+
+
+def _entry_and_signature(entries: tuple) -> tuple:
     from dolfinx_invertible import _compat
 
     entry = entries[1] if _compat.KERNEL_TAKES_CUSTOM_DATA else entries[0]
-    return c_callable(entry, _compat.KERNEL_SIGNATURE)
+    return entry, _compat.KERNEL_SIGNATURE
+
+
+def _key(kind: str, dimension: int, model_id: int, extension_id: int) -> tuple:
+    from dolfinx_invertible.constitutive.extensions import EXTENSIONS
+    from dolfinx_invertible.constitutive.models import MODELS
+
+    if kind not in KERNEL_KINDS:
+        raise ValueError(f"kind must be one of {KERNEL_KINDS}, got {kind!r}")
+    if dimension not in (2, 3):
+        raise ValueError(f"no kernel for dimension {dimension}; 2 and 3 are supported")
+    if model_id not in range(len(MODELS)) or extension_id not in range(len(EXTENSIONS)):
+        raise ValueError(f"unknown model id {model_id!r} or extension id {extension_id!r}")
+    return (kind, int(dimension), int(model_id), int(extension_id))
 
 
 def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) -> int:
@@ -100,19 +119,29 @@ def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) 
         Registry ids of the material's model and extension (``Material.model.model_id``,
         ``Material.extension_id``).
     """
-    from dolfinx_invertible.constitutive.extensions import EXTENSIONS
-    from dolfinx_invertible.constitutive.models import MODELS
-
-    if kind not in KERNEL_KINDS:
-        raise ValueError(f"kind must be one of {KERNEL_KINDS}, got {kind!r}")
-    if dimension not in (2, 3):
-        raise ValueError(f"no kernel for dimension {dimension}; 2 and 3 are supported")
-    if model_id not in range(len(MODELS)) or extension_id not in range(len(EXTENSIONS)):
-        raise ValueError(f"unknown model id {model_id!r} or extension id {extension_id!r}")
-    key = (kind, int(dimension), int(model_id), int(extension_id))
+    key = _key(kind, dimension, model_id, extension_id)
     if key not in _COMPILED:
+        # A helper compiling it writes numba's cache; the compilation below then loads from it.
+        compiled.wait_for_helper(("kernel", *key))
         _COMPILED[key] = compile_kernel(_entries(*key))
     return _COMPILED[key].address
+
+
+def compile_kernel_ahead(kind: str, dimension: int, model_id: int, extension_id: int) -> None:
+    """Start compiling a cell kernel in a helper process if it is neither loaded nor cached.
+
+    :func:`kernel_address` waits for the helper, then loads its result from numba's disk cache.
+    Nothing starts when :func:`~dolfinx_invertible.constitutive.compiled.helpers_allowed` says
+    no; a kernel already in the disk cache is loaded here. Arguments as for
+    :func:`kernel_address`.
+    """
+    key = _key(kind, dimension, model_id, extension_id)
+    if key not in _COMPILED:
+        statement = f"from {__name__} import kernel_address; kernel_address{key!r}"
+        entry, signature = _entry_and_signature(_entries(*key))
+        loaded = compiled.compile_ahead(("kernel", *key), entry, signature, statement)
+        if loaded is not None:
+            _COMPILED[key] = loaded
 
 
 def compiled_kernels() -> int:

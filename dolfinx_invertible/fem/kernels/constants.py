@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from dolfinx_invertible.constitutive.parameters import PARAMETER_COUNT
-from dolfinx_invertible.constitutive.svd_path import svd_path_address
+from dolfinx_invertible.constitutive.svd_path import bind_svd_path
 from dolfinx_invertible.fem.kernels.tables import ReferenceTables
 
 __all__ = [
@@ -108,7 +108,7 @@ def pack_constants(
         Number of values DOLFINx packs after this array (the user's Constants).
 
     The :data:`SVD_PATH_SLOT` stays zero: :func:`set_svd_path` fills it in before the kernels
-    first run, so that the SVD path can compile while the kernels do.
+    first run.
     """
     points, nodes, _ = tables.basis_derivatives.shape
     geometry_nodes = tables.geometry_derivatives.shape[1]
@@ -147,8 +147,14 @@ def pack_constants(
 def set_svd_path(constants: np.ndarray, material, dimension: int) -> None:
     """Write the address of the material's SVD path into packed ``constants``.
 
-    Compiles the SVD path, loads it from numba's disk cache, or waits for the helper process
-    compiling it (:func:`~dolfinx_invertible.constitutive.svd_path.compile_svd_path_ahead`).
+    Compiles the SVD path or loads it from numba's disk cache. While a helper process compiles
+    it (:func:`~dolfinx_invertible.constitutive.svd_path.compile_svd_path_ahead`), the slot
+    holds a stand-in instead, which waits for the helper when a point first needs the path and
+    then writes the path's own address into ``constants``
+    (:func:`~dolfinx_invertible.constitutive.svd_path.bind_svd_path`).
     """
-    address = svd_path_address(material.model.model_id, material.extension_id, dimension)
-    constants[SVD_PATH_SLOT] = _bits(address)
+
+    def bind(address: int) -> None:
+        constants[SVD_PATH_SLOT] = _bits(address)
+
+    bind_svd_path(material.model.model_id, material.extension_id, dimension, bind)
