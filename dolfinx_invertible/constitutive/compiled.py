@@ -4,10 +4,12 @@ With every function numba compiles, and keeps in its disk cache, a CPython wrapp
 the arguments, boxing the result) and a C wrapper. A function that only other compiled code
 calls needs neither, nor machine code of its own (its callers link its LLVM IR in and generate
 code for the whole chain): :func:`compiled_only` leaves all three out (docs/performance.md has
-what each saves). Such a function called from Python would jump through a null entry point, so
-its dispatcher refuses the call with a ``TypeError`` instead. Functions that Python calls (the
-batch loops' entries, the helpers the tests call one by one) are :func:`python_callable`, the C
-entry points :func:`c_callable`. All three save to numba's disk cache under a lock
+what each saves), and :func:`compiled_overload` does the same for the implementations of the
+package's numba overloads (the dispatch on model, extension and dimension). A compiled-only
+function called from Python would jump through a null entry point, so its dispatcher refuses
+the call with a ``TypeError`` instead. Functions that Python calls (the batch loops' entries,
+the helpers the tests call one by one) are :func:`python_callable`, the C entry points
+:func:`c_callable`. All three save to numba's disk cache under a lock
 (``_LockedFunctionCache``).
 
 A cold process can also hand an independent compilation to a helper process
@@ -35,9 +37,11 @@ from numba.core.caching import FunctionCache
 __all__ = [
     "HELPER_VARIABLE",
     "c_callable",
+    "c_callable_after_helper",
     "cached_c_callable",
     "compile_ahead",
     "compiled_only",
+    "compiled_overload",
     "compiling_ahead",
     "finish_helper",
     "helpers_allowed",
@@ -230,6 +234,24 @@ def compiled_only(function: Callable | None = None, *, forceinline: bool = False
     return decorate if function is None else decorate(function)
 
 
+def compiled_overload(function: Callable, **options):
+    """``numba.extending.overload`` whose implementations compile as :func:`compiled_only` does.
+
+    numba compiles an overload's implementation as an ordinary jit function: a library of its
+    own, optimised and turned into machine code with every callee linked in, for code that only
+    its compiled callers run after linking it again. This one keeps the LLVM IR only. The
+    ``options`` are ``overload``'s own (``prefer_literal``, ...).
+    """
+    from numba.extending import overload
+
+    jit_options = {
+        "no_cpython_wrapper": True,
+        "no_cfunc_wrapper": True,
+        "pipeline_class": _PIPELINE_CLASS,
+    }
+    return overload(function, jit_options=jit_options, **options)
+
+
 def python_callable(function: Callable):
     """``numba.njit(cache=True)(function)``, its disk cache saved under the lock."""
     dispatcher = numba.njit(function)
@@ -348,6 +370,16 @@ def compiling_ahead(key: tuple) -> bool:
 def wait_for_helper(key: tuple) -> None:
     """Wait for the helper of ``key``, if any (:func:`finish_helper`); then it is forgotten."""
     finish_helper(_AHEAD.pop(key, None))
+
+
+def c_callable_after_helper(key: tuple, function: Callable, signature) -> object:
+    """:func:`c_callable` once the helper of ``key`` is done: it loads what the helper compiled.
+
+    Without a helper of ``key`` (none started, or already waited for) this is :func:`c_callable`;
+    after a failed one, it compiles here.
+    """
+    wait_for_helper(key)
+    return c_callable(function, signature)
 
 
 def _stop(process: subprocess.Popen) -> None:

@@ -26,7 +26,8 @@ import inspect
 import numba
 import numpy as np
 from numba.core import types
-from numba.extending import overload
+
+from dolfinx_invertible.constitutive.compiled import compiled_overload
 
 __all__ = ["dispatch_on_dimension", "force_literal", "literal_id", "run_time_integers"]
 
@@ -94,5 +95,5 @@ def dispatch_on_dimension(stub, twins):
             return force_literal(stub, "d")
         return implementations[dimension]
 
-    overload(stub, prefer_literal=True)(typing)
+    compiled_overload(stub, prefer_literal=True)(typing)
     return stub

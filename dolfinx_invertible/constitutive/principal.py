@@ -11,10 +11,9 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from numba.extending import overload
 
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.compiled import compiled_only
+from dolfinx_invertible.constitutive.compiled import compiled_only, compiled_overload
 from dolfinx_invertible.constitutive.extensions.registry import EXTENSIONS
 from dolfinx_invertible.constitutive.literal import force_literal, literal_id
 from dolfinx_invertible.constitutive.models.registry import (
@@ -67,7 +66,7 @@ def _extended_derivatives(extension_id, model_id, positive_only, sigma, d, param
     return module.derivatives(model_id, sigma, d, params, order, work)
 
 
-@overload(_extended_derivatives, prefer_literal=True)
+@compiled_overload(_extended_derivatives, prefer_literal=True)
 def _extended_derivatives_compiled(
     extension_id, model_id, positive_only, sigma, d, params, order, work
 ):

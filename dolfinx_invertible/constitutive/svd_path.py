@@ -98,9 +98,9 @@ def svd_path_address(model_id: int, extension_id: int, d: int) -> int:
     """Return the address of the SVD path of a material for d×d F (compiled or loaded once)."""
     key = (int(model_id), int(extension_id), int(d))
     if key not in _COMPILED:
-        # A helper compiling it writes numba's cache; the compilation below then loads from it.
-        compiled.wait_for_helper(_helper_key(*key))
-        _COMPILED[key] = compiled.c_callable(_entry(*key), _SIGNATURE)
+        _COMPILED[key] = compiled.c_callable_after_helper(
+            _helper_key(*key), _entry(*key), _SIGNATURE
+        )
     return _COMPILED[key].address
 
 
@@ -121,7 +121,7 @@ def compile_svd_path_ahead(model_id: int, extension_id: int, d: int) -> None:
 
 def _helper_key(model_id: int, extension_id: int, d: int) -> tuple:
     """Return the key of the helper compiling this SVD path (``compiled.compile_ahead``)."""
-    return ("svd path", int(model_id), int(extension_id), int(d))
+    return ("svd path", model_id, extension_id, d)
 
 
 def bind_svd_path(model_id: int, extension_id: int, d: int, bind: Callable[[int], None]) -> None:

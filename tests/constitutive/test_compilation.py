@@ -15,6 +15,7 @@ from mpi4py import MPI
 
 import dolfinx
 import dolfinx.fem.petsc
+import numba
 import numpy as np
 
 import dolfinx_invertible as di
@@ -91,6 +92,38 @@ def test_compiled_only_function_has_ir_but_no_machine_code(tmp_path):
         print(*(sum(counts.values()) for counts in hits))
     """
     assert _run(script, tmp_path / "cache", cwd=tmp_path).split()[-2:] == ["1", "1"]
+
+
+def _doubled(x):
+    return 2.0 * x
+
+
+@compiled.compiled_overload(_doubled)
+def _doubled_compiled(x):
+    def implementation(x):
+        return 2.0 * x + 0.5  # not the Python body's value: tells which one ran
+
+    return implementation
+
+
+@numba.njit
+def _doubled_caller(x):
+    return _doubled(x) + 1.0
+
+
+def test_compiled_overload_has_ir_but_no_machine_code():
+    assert _doubled_caller(1.0) == 3.5
+    ((_, result),) = _doubled_caller.overloads.items()
+    linked = [
+        library for library in result.library._linking_libraries if "implementation" in library.name
+    ]
+    assert len(linked) == 1
+    library = linked[0]
+    assert type(library).__name__ == "LinkOnlyCodeLibrary"
+    names = [name for name in library.get_llvm_str().split() if "implementation" in name]
+    assert names
+    function_name = names[0].split("@")[-1].split("(")[0].strip('"')
+    assert library.get_pointer_to_function(function_name) == 0
 
 
 def test_processes_name_their_compiled_functions_apart(tmp_path):

@@ -13,10 +13,8 @@ from __future__ import annotations
 
 import sys
 
-from numba.extending import overload
-
 from dolfinx_invertible.constitutive import workspace as ws
-from dolfinx_invertible.constitutive.compiled import compiled_only
+from dolfinx_invertible.constitutive.compiled import compiled_only, compiled_overload
 from dolfinx_invertible.constitutive.literal import force_literal, literal_id
 from dolfinx_invertible.constitutive.models.arap import ARAP
 from dolfinx_invertible.constitutive.models.base import Model
@@ -66,7 +64,7 @@ def _tables(model_id, sigma, mu, lam, f, h):
     return _MODULES[model_id].tables(sigma, mu, lam, f, h)
 
 
-@overload(_tables, prefer_literal=True)
+@compiled_overload(_tables, prefer_literal=True)
 def _tables_compiled(model_id, sigma, mu, lam, f, h):
     value = literal_id(model_id)
     if value is None:
@@ -83,7 +81,7 @@ def _constants(model_id, mu, lam):
     return _MODULES[model_id].constants(mu, lam)
 
 
-@overload(_constants, prefer_literal=True)
+@compiled_overload(_constants, prefer_literal=True)
 def _constants_compiled(model_id, mu, lam):
     value = literal_id(model_id)
     if value is None:
@@ -100,7 +98,7 @@ def _slopes(model_id, x, y, mu, lam):
     return _MODULES[model_id].slopes(x, y, mu, lam)
 
 
-@overload(_slopes, prefer_literal=True)
+@compiled_overload(_slopes, prefer_literal=True)
 def _slopes_compiled(model_id, x, y, mu, lam):
     value = literal_id(model_id)
     if value is None:
@@ -125,7 +123,7 @@ def model_invariant_terms(model_id, I1, I2, J, d, params):
     return (True, *module.invariant_terms(I1, I2, J, d, params[0], params[1]))
 
 
-@overload(model_invariant_terms, prefer_literal=True)
+@compiled_overload(model_invariant_terms, prefer_literal=True)
 def _model_invariant_terms_compiled(model_id, I1, I2, J, d, params):
     value = literal_id(model_id)
     if value is None:
@@ -154,7 +152,7 @@ def model_invariant_curvature(model_id, I1, I2, J, d, params):
     return module.invariant_curvature(I1, I2, J, d, params[0], params[1])
 
 
-@overload(model_invariant_curvature, prefer_literal=True)
+@compiled_overload(model_invariant_curvature, prefer_literal=True)
 def _model_invariant_curvature_compiled(model_id, I1, I2, J, d, params):
     value = literal_id(model_id)
     if value is None:
@@ -182,7 +180,7 @@ def model_uses_second_invariant(model_id):
     return bool(getattr(_MODULES[model_id], "USES_SECOND_INVARIANT", False))
 
 
-@overload(model_uses_second_invariant, prefer_literal=True)
+@compiled_overload(model_uses_second_invariant, prefer_literal=True)
 def _model_uses_second_invariant_compiled(model_id):
     value = literal_id(model_id)
     if value is None:

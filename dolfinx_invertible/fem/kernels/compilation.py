@@ -121,9 +121,8 @@ def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) 
     """
     key = _key(kind, dimension, model_id, extension_id)
     if key not in _COMPILED:
-        # A helper compiling it writes numba's cache; the compilation below then loads from it.
-        compiled.wait_for_helper(("kernel", *key))
-        _COMPILED[key] = compile_kernel(_entries(*key))
+        entry, signature = _entry_and_signature(_entries(*key))
+        _COMPILED[key] = compiled.c_callable_after_helper(("kernel", *key), entry, signature)
     return _COMPILED[key].address
 
 
