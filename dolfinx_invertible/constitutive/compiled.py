@@ -116,14 +116,17 @@ class _LinkOnlyCodegen:
         return None
 
 
-def _link_only_library(codegen, name: str):
+def _link_only_library(codegen, name: str, optimise: bool = True):
     """Return a library of ``codegen``'s class that keeps LLVM IR for callers, no machine code.
 
     numba finalises every function's library on its own: it links the callees' IR in, optimises
     the result and generates its machine code. A compiled-only function's machine code is never
     run (its callers link its IR and optimise and generate code for the whole chain again), so
     this library stops after the optimisation. Its disk cache entry holds that IR; a process that
-    loads it generates the machine code then, as numba does for IR entries.
+    loads it generates the machine code then, as numba does for IR entries. With ``optimise``
+    false it also leaves out the optimisation of the linked module (numba's per-function passes
+    still run): for a function that only forwards to a callee, whose callers optimise the whole
+    chain again, it would optimise the callee's already optimised IR once more for nothing.
     """
     base = type(codegen.create_library("probe"))
     if base not in _LINK_ONLY_CLASSES:
@@ -136,21 +139,27 @@ def _link_only_library(codegen, name: str):
         def serialize_using_object_code(self):
             return self.serialize_using_bitcode()
 
+        def _optimize_final_module(self):
+            if self._optimise:
+                base._optimize_final_module(self)
+
         _LINK_ONLY_CLASSES[base] = type(
             "LinkOnlyCodeLibrary",
             (base,),
             {
                 "_finalize_final_module": _finalize_final_module,
+                "_optimize_final_module": _optimize_final_module,
                 "serialize_using_object_code": serialize_using_object_code,
                 "codegen": property(lambda self: _LinkOnlyCodegen(self._codegen)),
             },
         )
     library = _LINK_ONLY_CLASSES[base](codegen, name)
+    library._optimise = optimise
     library.enable_object_caching()
     return library
 
 
-def _compiled_only_pipeline_class():
+def _compiled_only_pipeline_class(optimise: bool = True):
     """Numba's nopython pipeline with the link-only library in place before native lowering."""
     from numba.core.compiler import CompilerBase, DefaultPassBuilder
     from numba.core.compiler_machinery import LoweringPass, PassManager, register_pass
@@ -166,7 +175,7 @@ def _compiled_only_pipeline_class():
         def run_pass(self, state):
             if state.library is None:
                 codegen = state.targetctx.codegen()
-                state.library = _link_only_library(codegen, state.func_id.func_qualname)
+                state.library = _link_only_library(codegen, state.func_id.func_qualname, optimise)
             return False
 
     class CompiledOnlyCompiler(CompilerBase):
@@ -184,6 +193,8 @@ def _compiled_only_pipeline_class():
 
 
 _PIPELINE_CLASS = _compiled_only_pipeline_class()
+# For functions that only forward to a callee (compiled_overload's implementations).
+_FORWARDING_PIPELINE_CLASS = _compiled_only_pipeline_class(optimise=False)
 
 
 class _LockedFunctionCache(FunctionCache):
@@ -239,15 +250,18 @@ def compiled_overload(function: Callable, **options):
 
     numba compiles an overload's implementation as an ordinary jit function: a library of its
     own, optimised and turned into machine code with every callee linked in, for code that only
-    its compiled callers run after linking it again. This one keeps the LLVM IR only. The
-    ``options`` are ``overload``'s own (``prefer_literal``, ...).
+    its compiled callers run after linking it again. This one keeps the LLVM IR only, and does
+    not optimise the linked module either: the package's overloads dispatch while typing, so an
+    implementation only forwards its arguments to the compiled function chosen, and its callers
+    optimise it together with their own code. The ``options`` are ``overload``'s own
+    (``prefer_literal``, ...).
     """
     from numba.extending import overload
 
     jit_options = {
         "no_cpython_wrapper": True,
         "no_cfunc_wrapper": True,
-        "pipeline_class": _PIPELINE_CLASS,
+        "pipeline_class": _FORWARDING_PIPELINE_CLASS,
     }
     return overload(function, jit_options=jit_options, **options)
 
