@@ -122,7 +122,7 @@ def kernel_address(kind: str, dimension: int, model_id: int, extension_id: int) 
     key = _key(kind, dimension, model_id, extension_id)
     if key not in _COMPILED:
         entry, signature = _entry_and_signature(_entries(*key))
-        _COMPILED[key] = compiled.c_callable_after_helper(("kernel", *key), entry, signature)
+        _COMPILED[key] = compiled.c_callable_after_helper(_helper_key(key), entry, signature)
     return _COMPILED[key].address
 
 
@@ -138,9 +138,14 @@ def compile_kernel_ahead(kind: str, dimension: int, model_id: int, extension_id:
     if key not in _COMPILED:
         statement = f"from {__name__} import kernel_address; kernel_address{key!r}"
         entry, signature = _entry_and_signature(_entries(*key))
-        loaded = compiled.compile_ahead(("kernel", *key), entry, signature, statement)
+        loaded = compiled.compile_ahead(_helper_key(key), entry, signature, statement)
         if loaded is not None:
             _COMPILED[key] = loaded
+
+
+def _helper_key(key: tuple) -> tuple:
+    """Return the key of the helper compiling the kernel of ``key`` (``compiled.compile_ahead``)."""
+    return ("kernel", *key)
 
 
 def compiled_kernels() -> int:
