@@ -393,10 +393,24 @@ _POLAR_SVD = {2: _polar_svd_2, 3: _polar_svd_3}
 dispatch_on_dimension(polar_svd_point, _POLAR_SVD)
 
 
-@python_callable
-def _polar_svd_batch(F, d, U, sigma, V):
-    for n in range(F.shape[0]):
-        polar_svd_point(F[n], d, U[n], sigma[n], V[n])
+_POLAR_SVD_BATCHES: dict[int, object] = {}
+
+
+def _polar_svd_batch(d: int):
+    """Return the compiled loop over a batch of ``d×d`` matrices.
+
+    ``d`` is a captured integer, a literal inside, as in the batch loops of
+    :mod:`~dolfinx_invertible.constitutive.pointwise`: a Python int argument would make numba
+    type the loop again on every call before it finds the literal's compiled version.
+    """
+    if d not in _POLAR_SVD_BATCHES:
+
+        def batch(F, U, sigma, V):
+            for n in range(F.shape[0]):
+                polar_svd_point(F[n], d, U[n], sigma[n], V[n])
+
+        _POLAR_SVD_BATCHES[d] = python_callable(batch)
+    return _POLAR_SVD_BATCHES[d]
 
 
 def polar_svd(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -419,7 +433,7 @@ def polar_svd(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     U = np.empty_like(batch)
     V = np.empty_like(batch)
     sigma = np.empty(batch.shape[:2])
-    _polar_svd_batch(batch, batch.shape[1], U, sigma, V)
+    _polar_svd_batch(batch.shape[1])(batch, U, sigma, V)
     if single:
         return U[0], sigma[0], V[0]
     return U, sigma, V

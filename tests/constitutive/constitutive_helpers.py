@@ -42,13 +42,32 @@ def compiled_caller(function):
 
     The package's inner functions are compiled for compiled callers only (no Python entry point,
     ``constitutive/compiled.py``), and its dispatch stubs resolve only while compiling; a test
-    calls either through this. The arguments keep their names, so an id or a dimension that
-    the callee needs as a literal is made one (``numba.literally``) on this caller.
+    calls either through this. Python ``int`` arguments are compiled into the caller as
+    constants, one caller per set of their values: an id or a dimension that the callee needs
+    as a literal is one from the start. Passed as arguments, numba would type the caller again
+    on every call before finding its literal version (a tenth of a second per call). NumPy
+    integers stay run-time values.
     """
     names = inspect.getfullargspec(getattr(function, "py_func", function)).args
-    arguments = ", ".join(names)
-    namespace = {"function": function}
-    exec(f"def call({arguments}):\n    return function({arguments})\n", namespace)  # noqa: S102
+
+    def call(*arguments):
+        constants = tuple(
+            (name, value) for name, value in zip(names, arguments) if type(value) is int
+        )
+        passed = [value for value in arguments if type(value) is not int]
+        return _caller_with_constants(function, constants)(*passed)
+
+    return call
+
+
+@functools.cache
+def _caller_with_constants(function, constants):
+    names = inspect.getfullargspec(getattr(function, "py_func", function)).args
+    fixed = dict(constants)
+    parameters = ", ".join(name for name in names if name not in fixed)
+    namespace = {"_callee": function, **fixed}
+    source = f"def call({parameters}):\n    return _callee({', '.join(names)})\n"
+    exec(source, namespace)  # noqa: S102
     return numba.njit(namespace["call"])
 
 

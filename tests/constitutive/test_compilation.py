@@ -18,6 +18,7 @@ import dolfinx
 import dolfinx.fem.petsc
 import numba
 import numpy as np
+import pytest
 
 import dolfinx_invertible as di
 from dolfinx_invertible import _compat
@@ -132,6 +133,40 @@ def test_compiled_overload_keeps_unoptimised_ir_and_no_machine_code():
     assert library.get_pointer_to_function(defined.group(1)) == 0
     # Its module is linked, not optimised: the one-line callee is still called, not inlined.
     assert re.search(r"call .*_doubled_inside", ir)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_calls_from_python_find_their_compiled_loop_without_typing(monkeypatch, d):
+    """The batch API's loops, once compiled, are called without numba typing anything again.
+
+    A Python int that a loop needs as a literal (an id, the dimension) would be typed as a
+    plain integer on every call before its literal version is found: a tenth of a second per
+    call, every step of a scene that records its diagnostics.
+    """
+    material = di.Material(di.NeoHookean(mu=1.0, lam=1.0), extension=di.C2(eps=0.9))
+    F = np.stack([np.eye(d), np.diag([1.0] * (d - 1) + [-0.5])])
+    sigma = np.array([[1.0] * d, [1.0] * (d - 1) + [-0.5]])
+    calls = {
+        "polar_svd": lambda: di.polar_svd(F),
+        "energy": lambda: material.energy(F),
+        "stress": lambda: material.stress(F),
+        "tangent": lambda: material.tangent(F),
+        "regions": lambda: material.regions(F),
+        "stress_sigma": lambda: material.stress_sigma(sigma),
+    }
+    for call in calls.values():
+        call()
+    typed = []
+    compile_for_args = numba.core.dispatcher.Dispatcher._compile_for_args
+
+    def counting(dispatcher, *arguments, **options):
+        typed.append(dispatcher.py_func.__qualname__)
+        return compile_for_args(dispatcher, *arguments, **options)
+
+    monkeypatch.setattr(numba.core.dispatcher.Dispatcher, "_compile_for_args", counting)
+    for name, call in calls.items():
+        call()
+        assert typed == [], f"{name} typed {typed} again"
 
 
 def test_processes_name_their_compiled_functions_apart(tmp_path):
