@@ -19,6 +19,8 @@ deficient.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from dolfinx_invertible.constitutive.compiled import compiled_only, python_callable
@@ -393,9 +395,7 @@ _POLAR_SVD = {2: _polar_svd_2, 3: _polar_svd_3}
 dispatch_on_dimension(polar_svd_point, _POLAR_SVD)
 
 
-_POLAR_SVD_BATCHES: dict[int, object] = {}
-
-
+@functools.cache
 def _polar_svd_batch(d: int):
     """Return the compiled loop over a batch of ``d×d`` matrices.
 
@@ -403,14 +403,12 @@ def _polar_svd_batch(d: int):
     :mod:`~dolfinx_invertible.constitutive.pointwise`: a Python int argument would make numba
     type the loop again on every call before it finds the literal's compiled version.
     """
-    if d not in _POLAR_SVD_BATCHES:
 
-        def batch(F, U, sigma, V):
-            for n in range(F.shape[0]):
-                polar_svd_point(F[n], d, U[n], sigma[n], V[n])
+    def batch(F, U, sigma, V):
+        for n in range(F.shape[0]):
+            polar_svd_point(F[n], d, U[n], sigma[n], V[n])
 
-        _POLAR_SVD_BATCHES[d] = python_callable(batch)
-    return _POLAR_SVD_BATCHES[d]
+    return python_callable(batch)
 
 
 def polar_svd(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

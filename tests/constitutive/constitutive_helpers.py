@@ -55,14 +55,13 @@ def compiled_caller(function):
             (name, value) for name, value in zip(names, arguments) if type(value) is int
         )
         passed = [value for value in arguments if type(value) is not int]
-        return _caller_with_constants(function, constants)(*passed)
+        return _caller_with_constants(function, tuple(names), constants)(*passed)
 
     return call
 
 
 @functools.cache
-def _caller_with_constants(function, constants):
-    names = inspect.getfullargspec(getattr(function, "py_func", function)).args
+def _caller_with_constants(function, names, constants):
     fixed = dict(constants)
     parameters = ", ".join(name for name in names if name not in fixed)
     namespace = {"_callee": function, **fixed}
