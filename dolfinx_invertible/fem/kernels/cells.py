@@ -59,6 +59,7 @@ from dolfinx_invertible.fem.kernels.counters import (
 )
 from dolfinx_invertible.fem.kernels.geometry import (
     cell_layout,
+    deformation_gradient,
     inverse_jacobian,
     point_geometry,
     reference_deformation,
@@ -230,20 +231,21 @@ def cell_residual(A_, w_, c_, coordinates_, d, model_id, extension_id):
     count_points(header, _RESIDUAL_FIELD, points, svd_points)
 
 
-@compiled_only
-def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
-    """Add the cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so)."""
-    numba.literally(d)
-    numba.literally(model_id)
-    numba.literally(extension_id)
-    c, nodes, points, start, geometry_start, displacement, coordinates = cell_layout(
-        c_, w_, coordinates_, d
-    )
+@compiled_only(forceinline=True)
+def _tangent_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes, geometry_nodes):
+    """Run the quadrature loop of :func:`cell_tangent`; return (points, points through the SVD).
+
+    Inlined by LLVM (``forceinline``), as :func:`_residual_points`: with constant node counts the
+    contraction with the basis gradients unrolls for the element at hand.
+    """
+    c, _, points, start, geometry_start, displacement, _ = cell_layout(c_, w_, coordinates_, d)
+    coordinates = numba.carray(coordinates_, (geometry_nodes, 3))
     params = numba.carray(ws.stack_array(PARAMETER_COUNT), PARAMETER_COUNT)
     positive_only, project, svd_path = _material(c_, c, params)
     scratch = numba.carray(ws.stack_array(KERNEL_SCRATCH), KERNEL_SCRATCH)
     work = ws.new_workspace(ws.stack_buffer())
     gradients, jacobian, F = _point_views(scratch, nodes, d)
+    inverse = numba.carray(ws.stack_array(9), (d, d))
     n = d * d
     P = numba.carray(ws.address(scratch, _STRESS), (d, d))
     C = numba.carray(ws.address(scratch, _TANGENT), (n, n))
@@ -251,11 +253,27 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
     CB = numba.carray(ws.address(scratch, _CONTRACTED), (n, nodes, d))
     size = nodes * d
     A = numba.carray(A_, (size, size))
+    # An affine geometry (d + 1 nodes): J⁻¹ and |det J| are those of the first point.
+    affine = geometry_nodes == d + 1
+    determinant = 0.0
     svd_points = 0
     for q in range(points):
-        scale = point_geometry(
-            c, q, start, geometry_start, coordinates, displacement, gradients, jacobian, F, d, nodes
-        )
+        if q == 0 or not affine:
+            geometry = numba.carray(
+                ws.address(c, geometry_start + q * geometry_nodes * d), geometry_nodes * d
+            )
+            determinant = inverse_jacobian(
+                coordinates, geometry, jacobian, inverse, geometry_nodes, d
+            )
+        scale = c[WEIGHTS_START + q] * determinant
+        basis = numba.carray(ws.address(c, start + q * nodes * d), nodes * d)
+        for a in range(nodes):
+            for j in range(d):
+                total = 0.0
+                for r in range(d):
+                    total += basis[a * d + r] * inverse[r, j]
+                gradients[a, j] = total
+        deformation_gradient(displacement, gradients, F, nodes, d)
         _, _, through_svd = point_tangent(
             F, d, model_id, extension_id, positive_only, params, project, svd_path, work, P, C
         )
@@ -281,4 +299,32 @@ def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
             for i in range(d):
                 for k in range(d):
                     A[b * d + k, a * d + i] = A[a * d + i, b * d + k]
-    count_points(c, _TANGENT_FIELD, points, svd_points)
+    return points, svd_points
+
+
+@compiled_only
+def cell_tangent(A_, w_, c_, coordinates_, d, model_id, extension_id):
+    """Add the cell tangent ∫ ∇φ_a : dP/dF : ∇φ_b dX (projected if the header says so).
+
+    Constant node counts for the P1 and P2 simplices, as in :func:`cell_residual`.
+    """
+    numba.literally(d)
+    numba.literally(model_id)
+    numba.literally(extension_id)
+    header = numba.carray(c_, HEADER_SIZE)
+    nodes = int(header[NODES_SLOT])
+    geometry_nodes = int(header[GEOMETRY_NODES_SLOT])
+    vertices = d + 1
+    if geometry_nodes == vertices and nodes == vertices:
+        points, svd_points = _tangent_points(
+            A_, c_, w_, coordinates_, d, model_id, extension_id, d + 1, d + 1
+        )
+    elif geometry_nodes == vertices and nodes == (d + 1) * (d + 2) // 2:
+        points, svd_points = _tangent_points(
+            A_, c_, w_, coordinates_, d, model_id, extension_id, (d + 1) * (d + 2) // 2, d + 1
+        )
+    else:
+        points, svd_points = _tangent_points(
+            A_, c_, w_, coordinates_, d, model_id, extension_id, nodes, geometry_nodes
+        )
+    count_points(header, _TANGENT_FIELD, points, svd_points)
