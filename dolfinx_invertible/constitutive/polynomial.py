@@ -11,7 +11,7 @@ import numpy as np
 
 from dolfinx_invertible.constitutive.compiled import compiled_only
 
-__all__ = ["first_root_in_unit_interval"]
+__all__ = ["first_root_in_unit_interval", "single_root_in_unit_interval"]
 
 
 @compiled_only
@@ -25,11 +25,17 @@ def _slope(t, c1, c2, c3):
 
 
 @compiled_only
-def _bracketed_root(lo, hi, c0, c1, c2, c3):
-    """Root in [lo, hi] where the cubic is monotone and goes from > 0 to ≤ 0.
+def _curvature(t, c2, c3):
+    return 2.0 * c2 + 6.0 * t * c3
 
-    Newton from the secant point of the bracket, bisection when Newton would leave it. A Newton
-    step below 1e-9 (relative) leaves an error of about its square: that step is the last.
+
+@compiled_only
+def _bracketed_root(lo, hi, c0, c1, c2, c3):
+    """Return the one root in [lo, hi] of a cubic that is > 0 left of it and ≤ 0 right of it.
+
+    Halley's method from the secant point of the bracket, bisection where Halley would leave
+    the bracket or the cubic is not falling. Halley's error after a step is about the cube of
+    that step, so a step below 1e-6 (relative) is the last: its error is below round-off.
     """
     value_lo = _value(lo, c0, c1, c2, c3)
     value_hi = _value(hi, c0, c1, c2, c3)
@@ -45,15 +51,16 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
         else:
             hi = t
         slope = _slope(t, c1, c2, c3)
-        newton = slope < 0.0
-        candidate = t - value / slope if newton else 0.5 * (lo + hi)
-        # Newton while it stays inside the bracket, bisection otherwise.
+        denominator = 2.0 * slope * slope - value * _curvature(t, c2, c3)
+        halley = slope < 0.0 and denominator > 0.0
+        candidate = t - 2.0 * value * slope / denominator if halley else 0.5 * (lo + hi)
+        # Halley while it stays inside the bracket, bisection otherwise.
         if not (lo < candidate < hi):
             candidate = 0.5 * (lo + hi)
-            newton = False
+            halley = False
         step = abs(candidate - t)
         size = max(t, 1e-300)
-        if (newton and step <= 1e-9 * size) or step <= 1e-16 * size or hi - lo <= 1e-17:
+        if (halley and step <= 1e-6 * size) or step <= 1e-16 * size or hi - lo <= 1e-17:
             return candidate
         t = candidate
     return t
@@ -88,3 +95,17 @@ def first_root_in_unit_interval(c0, c1, c2, c3):
             return _bracketed_root(lo, hi, c0, c1, c2, c3)
         lo = hi
     return 2.0
+
+
+@compiled_only
+def single_root_in_unit_interval(c0, c1, c2, c3):
+    """Return where in (0, 1] a cubic known to change sign there once crosses 0.
+
+    The caller knows the cubic is > 0 on [0, t) and < 0 on (t, 1] (c0 > 0 ≥ its value at 1),
+    so the bracket needs no search for critical points, unlike
+    :func:`first_root_in_unit_interval`. Returns 1.0 if the value at 1 is still > 0 (round-off
+    at a crossing right at 1).
+    """
+    if _value(1.0, c0, c1, c2, c3) > 0.0:
+        return 1.0
+    return _bracketed_root(0.0, 1.0, c0, c1, c2, c3)

@@ -12,9 +12,12 @@ import functools
 
 import numpy as np
 import pytest
+from constitutive_helpers import compiled_caller
 
 from dolfinx_invertible import C2, Material, NeoHookean
 from dolfinx_invertible.bench import reference as reference
+from dolfinx_invertible.constitutive.extensions.c2 import threshold_parameter
+from dolfinx_invertible.constitutive.polynomial import first_root_in_unit_interval
 
 EPS = 0.9
 # A compressible and a nearly incompressible parameter set (E = 1, nu = 0.3 and 0.45).
@@ -146,12 +149,55 @@ def test_reference_root_is_smallest_root():
     a = sigma - 1.0
     roots = reference.c2_root(a, EPS)
     for a_point, root in zip(a, roots):
-        # prod(1 + t a_i) - eps as a polynomial in t, highest power first.
-        polynomial = functools.reduce(np.polymul, [[value, 1.0] for value in a_point])
-        polynomial[-1] -= EPS
-        candidates = np.roots(polynomial)
-        real = candidates[np.abs(candidates.imag) < 1e-9].real
-        assert root == pytest.approx(np.min(real[(real > 0) & (real < 1)]), abs=1e-12)
+        assert root == pytest.approx(_smallest_root(a_point, EPS), abs=1e-12)
+
+
+def _smallest_root(a_point: np.ndarray, eps: float) -> float:
+    # prod(1 + t a_i) - eps as a polynomial in t, highest power first.
+    polynomial = functools.reduce(np.polymul, [[value, 1.0] for value in a_point])
+    polynomial[-1] -= eps
+    candidates = np.roots(polynomial)
+    real = candidates[np.abs(candidates.imag) < 1e-9].real
+    return float(np.min(real[(real > 0) & (real <= 1 + 1e-12)]))
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_threshold_parameter_is_the_smallest_root(dimension):
+    # Compressed, stretched-and-compressed (the cubic rises before it falls) and inverted points
+    # (a factor crosses zero inside (0, 1), beyond which the cubic may rise again).
+    rng = np.random.default_rng(5)
+    sigma = rng.uniform(-0.8, 1.8, (400, dimension))
+    sigma[:, 1:] = np.abs(sigma[:, 1:])  # at most one negative value, as the polar SVD gives
+    sigma = sigma[np.prod(sigma, axis=1) < EPS]
+    assert np.any(sigma < 0.0) and np.any(sigma > 1.2)
+    threshold = compiled_caller(threshold_parameter)
+    for point in sigma:
+        a = point - 1.0
+        s = threshold(a, EPS)
+        assert s == pytest.approx(_smallest_root(a, EPS), rel=1e-13, abs=1e-15)
+        assert np.prod(1.0 + s * a) == pytest.approx(EPS, rel=1e-14)
+
+
+def test_first_root_in_unit_interval_is_the_first_crossing():
+    # Cubics through three chosen roots, one to three of them in (0, 1], and c0 > 0: the line
+    # search's volume caps, where the cubic may cross zero, turn back and cross again.
+    rng = np.random.default_rng(6)
+    first_root = compiled_caller(first_root_in_unit_interval)
+    for _ in range(300):
+        roots = rng.uniform(-0.5, 1.5, 3)
+        scale = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-3, 3)
+        c3, c2, c1, c0 = scale * np.poly(roots)
+        if c0 <= 0.0:
+            c3, c2, c1, c0 = -c3, -c2, -c1, -c0
+        inside = np.sort(roots[(roots > 0.0) & (roots <= 1.0)])
+        # Roots that touch zero without a sign change are not crossings: keep them apart.
+        if len(inside) == 0 or np.min(np.abs(np.diff(np.sort(roots)))) < 1e-3:
+            continue
+        # The root is determined to the cubic's rounding error over its slope there.
+        root = inside[0]
+        slope = abs(c1 + root * (2.0 * c2 + 3.0 * root * c3))
+        rounding = 8.0 * np.finfo(float).eps * (abs(c0) + abs(c1) + abs(c2) + abs(c3)) / slope
+        assert abs(first_root(c0, c1, c2, c3) - root) <= rounding + 1e-15 * root
 
 
 def test_reference_polar_svd():

@@ -21,7 +21,7 @@ from dolfinx_invertible.constitutive.models.registry import (
     model_anchor_derivatives,
     model_derivatives_into,
 )
-from dolfinx_invertible.constitutive.polynomial import first_root_in_unit_interval
+from dolfinx_invertible.constitutive.polynomial import single_root_in_unit_interval
 
 __all__ = ["C2", "derivatives", "c2_derivatives", "threshold_parameter"]
 
@@ -32,7 +32,14 @@ _MIN_CROSSING_SLOPE = 1e-12
 
 @compiled_only
 def threshold_parameter(a, eps):
-    """Smallest s in (0, 1] with Π(1 + s aᵢ) = ε, given Π(1 + aᵢ) < ε < 1."""
+    """Smallest s in (0, 1] with Π(1 + s aᵢ) = ε, given Π(1 + aᵢ) < ε < 1 (σ = 1 + a canonical).
+
+    The cubic Π(1 + s aᵢ) − ε changes sign once on [0, 1]: up to the first zero of a factor the
+    geometric mean of the (positive, affine) factors is concave in s, so it falls through
+    ε^(1/d) once; past that zero exactly one factor is negative (the polar SVD leaves at most one
+    σᵢ < 0), so the product stays below 0. The bracket [0, 1] therefore holds the root alone,
+    without a search for the cubic's critical points.
+    """
     d = a.shape[0]
     e1 = 0.0
     e2 = 0.0
@@ -43,9 +50,7 @@ def threshold_parameter(a, eps):
             e2 += a[i] * a[j]
     if d == 3:
         e3 = a[0] * a[1] * a[2]
-    s = first_root_in_unit_interval(1.0 - eps, e1, e2, e3)
-    # J(σ) < ε guarantees a crossing; round-off at J(σ) ≈ ε may hide it at s = 1.
-    return min(s, 1.0)
+    return single_root_in_unit_interval(1.0 - eps, e1, e2, e3)
 
 
 def _specialised_c2_derivatives(d: int):
