@@ -153,6 +153,19 @@ def custom_form(spaces, kernel_address: int, coefficients, constants, mesh):
     return dolfinx.fem.Form(cpp_form)
 
 
+def form_data(form) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Return a compiled form's packed constant values and its coefficients' value arrays.
+
+    Together with the mesh geometry they are everything the form's kernels read. The coefficient
+    arrays (owned and ghost values) are the Functions' own, not copies.
+    """
+    import dolfinx.cpp
+
+    cpp_form = _cpp_object(form)
+    constants = dolfinx.cpp.fem.pack_constants(cpp_form)
+    return constants, [coefficient.x.array for coefficient in cpp_form.coefficients]
+
+
 def coordinate_element_degree(mesh) -> int:
     """Polynomial degree of the mesh geometry map."""
     geometry = mesh.geometry

@@ -24,6 +24,10 @@ from dolfinx_invertible import _compat
 
 __all__ = ["EnergyProblem", "EnergyTerm"]
 
+# A reused form's matrix has the pattern of the first form, within that of any matrix the
+# problem assembles into.
+_SUBSET_PATTERN = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+
 
 class EnergyTerm(Protocol):
     """A contribution to Π that is not a DOLFINx form, e.g. a contact barrier.
@@ -50,6 +54,56 @@ class EnergyTerm(Protocol):
         out. The matrix is flushed before and assembled after this call.
         """
         ...
+
+
+class _ReusedMatrix:
+    """The assembled matrix of a bilinear form that does not read the unknown.
+
+    Such a form (the inertia term's mass matrix, a linear spring) gives the same matrix at every
+    iterate: it is assembled again only when something it reads has changed since (its
+    constants, e.g. the time step in an inertia weight, its coefficients or the mesh geometry),
+    and otherwise added as it is. Assembling even a trivial form costs as much as the insertion
+    of every cell's entries into the sparse matrix.
+    """
+
+    def __init__(self, form, matrix: PETSc.Mat, geometry: np.ndarray) -> None:
+        self.form = form
+        self.matrix = matrix
+        self._geometry = geometry
+        self._seen: tuple[np.ndarray, list[np.ndarray], np.ndarray] | None = None
+
+    def _unchanged(self, constants: np.ndarray, coefficients: list[np.ndarray]) -> bool:
+        if self._seen is None:
+            return False
+        seen_constants, seen_coefficients, seen_geometry = self._seen
+        return (
+            np.array_equal(constants, seen_constants)
+            and all(map(np.array_equal, coefficients, seen_coefficients))
+            and np.array_equal(self._geometry, seen_geometry)
+        )
+
+    def update(self, bcs: list) -> bool:
+        """Assemble the form again if its data changed; return False if it cannot be reused.
+
+        Its Dirichlet rows and columns are zero, with 0 on the diagonal. A form whose entries
+        fall outside the sparsity pattern of the problem's matrix cannot be added to it as is.
+        """
+        constants, coefficients = _compat.form_data(self.form)
+        if self._unchanged(constants, coefficients):
+            return True
+        self.matrix.zeroEntries()
+        _compat.assemble_matrix_into(self.matrix, self.form, bcs, 0.0)
+        self.matrix.assemble()
+        if self.matrix.getInfo()["mallocs"] > 0:
+            return False
+        self._seen = (constants, [array.copy() for array in coefficients], self._geometry.copy())
+        return True
+
+
+def _reads(form, u: dolfinx.fem.Function) -> bool:
+    """Whether a compiled form has ``u`` among its coefficients."""
+    _, coefficients = _compat.form_data(form)
+    return any(np.shares_memory(array, u.x.array) for array in coefficients)
 
 
 def _as_form_list(forms: Any, rank: int, name: str) -> list:
@@ -115,6 +169,13 @@ class EnergyProblem:
         self.comm = u.function_space.mesh.comm
         self._u_vector = _compat.petsc_vector(u)
         self._pattern_checked = False
+        # Bilinear forms that do not read u, reused between assemblies (the first form sets the
+        # sparsity pattern and is always assembled).
+        self._reused = [
+            _ReusedMatrix(form, self.create_matrix(), u.function_space.mesh.geometry.x)
+            for form in self.jacobian_forms[1:]
+            if not _reads(form, u)
+        ]
         space = u.function_space
         block_size = space.dofmap.index_map_bs
         local_size = space.dofmap.index_map.size_local + space.dofmap.index_map.num_ghosts
@@ -206,16 +267,26 @@ class EnergyProblem:
 
         Dirichlet rows and columns are zero with 1 on the diagonal, exactly once: DOLFINx inserts
         rather than adds the diagonal, so every form but the last is assembled with diagonal 0
-        and the last with 1, which yields 1 whether the diagonal is inserted or added.
+        and the last with 1, which yields 1 whether the diagonal is inserted or added. A form
+        after the first that does not read ``u`` is assembled only when its constants,
+        coefficients or the mesh geometry changed, and its matrix added otherwise.
         """
         self.update_solution(x)
         matrices = [A] if P is None or P.handle == A.handle else [A, P]
-        last = len(self.jacobian_forms) - 1
+        reused = [matrix for matrix in self._reused if matrix.update(self.bcs)]
+        self._reused = reused  # a form that cannot be reused is assembled from now on
+        reused_forms = {id(matrix.form) for matrix in reused}
+        assembled = [form for form in self.jacobian_forms if id(form) not in reused_forms]
+        last = len(assembled) - 1
         for matrix in matrices:
             matrix.zeroEntries()
-            for index, form in enumerate(self.jacobian_forms):
+            for index, form in enumerate(assembled):
                 diagonal = 1.0 if index == last else 0.0
                 _compat.assemble_matrix_into(matrix, form, self.bcs, diagonal)
+            if reused:
+                matrix.assemble()
+                for reused_matrix in reused:
+                    matrix.axpy(1.0, reused_matrix.matrix, structure=_SUBSET_PATTERN)
             for term in self.terms:
                 term.add_tangent(matrix, self.constrained_dofs)
                 matrix.assemble(PETSc.Mat.AssemblyType.FLUSH)

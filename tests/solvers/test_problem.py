@@ -287,3 +287,39 @@ def test_time_dependent_dirichlet_data_drive_the_motion():
     # The far end has started to follow, but lags behind the driven face.
     far = values_at_points(u, np.array([[1.0, 0.15, 0.15]]))[0, 0]
     assert 0.0 < far < 0.5 * dynamics.time
+
+
+@pytest.mark.mpi
+def test_a_form_that_does_not_read_u_is_assembled_once_per_change_of_its_data(monkeypatch):
+    """The inertia term's matrix is reused: the sum equals assembling every form, every time."""
+    mesh, u, bc, _, _ = beam()
+    u.interpolate(lambda x: np.stack([0.02 * x[1], -0.03 * x[0], 0.01 * x[0] * x[2]]))
+    dynamics = ImplicitDynamics(u, Material(NeoHookean(mu=MU, lam=LAM), C2(0.9)), density=1.0,
+                                dt=0.01, bcs=[bc])  # fmt: skip
+    problem = dynamics.problem.energy_problem
+    elastic, inertia = problem.jacobian_forms
+    assembled = []
+    assemble = _compat.assemble_matrix_into
+
+    def counting(matrix, form, bcs, diagonal):
+        assembled.append(form)
+        assemble(matrix, form, bcs, diagonal)
+
+    monkeypatch.setattr(_compat, "assemble_matrix_into", counting)
+    matrix = problem.create_matrix()
+    reference = problem.create_matrix()
+    x = _compat.petsc_vector(u).copy()
+    for weight in (1e4, 1e4, 1e4, 2.5e5, 2.5e5):
+        dynamics._weight.value = weight
+        problem.J(None, x, matrix, matrix)
+        reference.zeroEntries()
+        assemble(reference, elastic, [bc], 0.0)
+        assemble(reference, inertia, [bc], 1.0)
+        reference.assemble()
+        difference = matrix.copy()
+        difference.axpy(-1.0, reference)
+        assert difference.norm() <= 1e-13 * reference.norm()
+        # The moving iterate reaches the elastic form: it is assembled every time.
+        x.array[:] += 1e-3
+    assert sum(form is elastic for form in assembled) == 5
+    assert sum(form is inertia for form in assembled) == 2  # once per weight
