@@ -60,6 +60,7 @@ from dolfinx_invertible.fem.kernels.counters import (
 from dolfinx_invertible.fem.kernels.geometry import (
     cell_layout,
     deformation_gradient,
+    gradients_from_reference,
     inverse_jacobian,
     point_geometry,
     reference_deformation,
@@ -267,12 +268,7 @@ def _tangent_points(A_, c_, w_, coordinates_, d, model_id, extension_id, nodes, 
             )
         scale = c[WEIGHTS_START + q] * determinant
         basis = numba.carray(ws.address(c, start + q * nodes * d), nodes * d)
-        for a in range(nodes):
-            for j in range(d):
-                total = 0.0
-                for r in range(d):
-                    total += basis[a * d + r] * inverse[r, j]
-                gradients[a, j] = total
+        gradients_from_reference(basis, inverse, gradients, nodes, d)
         deformation_gradient(displacement, gradients, F, nodes, d)
         _, _, through_svd = point_tangent(
             F, d, model_id, extension_id, positive_only, params, project, svd_path, work, P, C

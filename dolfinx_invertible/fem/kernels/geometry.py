@@ -18,6 +18,7 @@ from dolfinx_invertible.fem.kernels.constants import (
 __all__ = [
     "cell_layout",
     "deformation_gradient",
+    "gradients_from_reference",
     "inverse_jacobian",
     "physical_gradients",
     "point_geometry",
@@ -75,13 +76,19 @@ def physical_gradients(coordinates, geometry, basis, gradients, jacobian, nodes,
     """
     inverse = numba.carray(ws.stack_array(9), (d, d))
     scale = inverse_jacobian(coordinates, geometry, jacobian, inverse, coordinates.shape[0], d)
+    gradients_from_reference(basis, inverse, gradients, nodes, d)
+    return scale
+
+
+@compiled_only(forceinline=True)
+def gradients_from_reference(basis, inverse, gradients, nodes, d):
+    """∇φ_a = K ∂φ_a/∂ξ into ``gradients`` (nodes × d), from the reference derivatives."""
     for a in range(nodes):
         for j in range(d):
             total = 0.0
             for r in range(d):
                 total += basis[a * d + r] * inverse[r, j]
             gradients[a, j] = total
-    return scale
 
 
 @compiled_only(forceinline=True)
