@@ -99,8 +99,11 @@ def xdmf_file(comm, path, mode: str = "w"):
     return dolfinx.io.XDMFFile(comm, str(path), mode)
 
 
-def _cpp_object(wrapper):
-    # Some Python wrappers hold their C++ object, others (0.5's Mesh, Constant) subclass it.
+def cpp_object(wrapper):
+    """Return the C++ object behind a DOLFINx Python object (a Mesh, Constant, Form, ...).
+
+    Most wrappers hold it as ``_cpp_object`` (0.5's Mesh as ``_mesh``); 0.5's Form subclasses it.
+    """
     for attribute in ("_cpp_object", "_mesh"):
         if hasattr(wrapper, attribute):
             return getattr(wrapper, attribute)
@@ -118,12 +121,12 @@ def custom_form(spaces, kernel_address: int, coefficients, constants, mesh):
     if DOLFINX_VERSION < (0, 7):
         integrals = {cpp.fem.IntegralType.cell: ([(-1, kernel_address)], None)}
         return cpp.fem.Form_float64(
-            [_cpp_object(space) for space in spaces],
+            [cpp_object(space) for space in spaces],
             integrals,
-            [_cpp_object(coefficient) for coefficient in coefficients],
-            [_cpp_object(constant) for constant in constants],
+            [cpp_object(coefficient) for coefficient in coefficients],
+            [cpp_object(constant) for constant in constants],
             False,
-            _cpp_object(mesh),
+            cpp_object(mesh),
         )
     if DOLFINX_VERSION < (0, 9):
         raise NotImplementedError(
@@ -142,13 +145,13 @@ def custom_form(spaces, kernel_address: int, coefficients, constants, mesh):
     integrals = {dolfinx.fem.IntegralType.cell: [(integral_id, kernel_address, cells, active)]}
     entity_maps = {} if DOLFINX_VERSION < (0, 10) else []
     cpp_form = cpp.fem.Form_float64(
-        [_cpp_object(space) for space in spaces],
+        [cpp_object(space) for space in spaces],
         integrals,
-        [_cpp_object(coefficient) for coefficient in coefficients],
-        [_cpp_object(constant) for constant in constants],
+        [cpp_object(coefficient) for coefficient in coefficients],
+        [cpp_object(constant) for constant in constants],
         False,
         entity_maps,
-        mesh=_cpp_object(mesh),
+        mesh=cpp_object(mesh),
     )
     return dolfinx.fem.Form(cpp_form)
 
@@ -161,7 +164,7 @@ def form_data(form) -> tuple[np.ndarray, list[np.ndarray]]:
     """
     import dolfinx.cpp
 
-    cpp_form = _cpp_object(form)
+    cpp_form = cpp_object(form)
     constants = dolfinx.cpp.fem.pack_constants(cpp_form)
     return constants, [coefficient.x.array for coefficient in cpp_form.coefficients]
 

@@ -40,6 +40,7 @@ __all__ = [
     "c_callable_after_helper",
     "cached_c_callable",
     "compile_ahead",
+    "helper_exited",
     "compiled_only",
     "compiled_overload",
     "compiling_ahead",
@@ -379,6 +380,12 @@ def compile_ahead(key: tuple, function: Callable, signature, statement: str) -> 
 def compiling_ahead(key: tuple) -> bool:
     """Whether a helper of :func:`compile_ahead` was started for ``key`` and not waited for."""
     return key in _AHEAD
+
+
+def helper_exited(key: tuple) -> bool:
+    """Whether the helper of ``key`` has exited (or never started), so waiting for it is free."""
+    process = _AHEAD.get(key)
+    return process is None or process.poll() is not None
 
 
 def wait_for_helper(key: tuple) -> None:

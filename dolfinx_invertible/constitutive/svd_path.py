@@ -132,11 +132,17 @@ def bind_svd_path(model_id: int, extension_id: int, d: int, bind: Callable[[int]
     address of a stand-in with the same C signature, and the real address later: the stand-in's
     first call waits for the helper, loads the path, passes its address to every ``bind``
     waiting for it, and forwards the call (as do later calls made before the caller rebinds,
-    such as the rest of an assembly whose constants DOLFINx packed already).
+    such as the rest of an assembly whose constants DOLFINx packed already). A ``bind`` must
+    keep alive what it writes to; once the helper has exited, the next call here binds every
+    waiting caller too, so none is held longer than the helper runs.
     """
     key = (int(model_id), int(extension_id), int(d))
-    if not compiled.compiling_ahead(_helper_key(*key)):
-        bind(svd_path_address(*key))
+    helper = _helper_key(*key)
+    # A helper that has exited costs no wait: bind to the path itself, and whoever waits too.
+    if not compiled.compiling_ahead(helper) or compiled.helper_exited(helper):
+        address = svd_path_address(*key)
+        _bind_waiting(key, address)
+        bind(address)
         return
     if key not in _STAND_INS:
         _STAND_INS[key] = (_stand_in(key), [])
@@ -158,12 +164,17 @@ def _stand_in(key: tuple[int, int, int]):
             for index in range(size * size if order >= 2 else 0):
                 C[index] = math.nan
             return math.nan
-        waiting = _STAND_INS[key][1]
-        while waiting:
-            waiting.pop()(address)
+        _bind_waiting(key, address)
         return _C_TYPE(address)(F, positive_only, params, project, order, work, P, C)
 
     return _C_TYPE(forward)
+
+
+def _bind_waiting(key: tuple[int, int, int], address: int) -> None:
+    """Pass the path's ``address`` to every caller bound to the stand-in of ``key``; forget them."""
+    waiting = _STAND_INS[key][1] if key in _STAND_INS else []
+    while waiting:
+        waiting.pop()(address)
 
 
 def _as_int64(builder, value, value_type):

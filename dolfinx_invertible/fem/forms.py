@@ -184,7 +184,7 @@ class HyperelasticForms:
                 kind, mesh.geometry.dim, self.material.model.model_id, self.material.extension_id
             )
             if not self._forms:  # the kernels need the SVD path's address before they first run
-                kernels.set_svd_path(self.constants.value, self.material, mesh.geometry.dim)
+                kernels.set_svd_path(self.constants, self.material, mesh.geometry.dim)
             self._forms[kind] = _compat.custom_form(
                 spaces, address, [self.u], [self.constants, *self.parameter_constants], mesh
             )

@@ -4,6 +4,7 @@ Each check that needs an empty numba cache runs in a child process on its own ``
 (numba reads it at import).
 """
 
+import gc
 import logging
 import os
 import re
@@ -11,6 +12,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import weakref
 
 from mpi4py import MPI
 
@@ -287,10 +289,13 @@ def test_compiled_in_a_helper_is_loaded_from_the_cache(tmp_path):
 
 
 def _pretend_a_helper_compiles(monkeypatch, key) -> None:
-    """Make the SVD path of ``key`` look unready, with a (trivial) helper compiling it."""
+    """Make the SVD path of ``key`` look unready, with a (trivial) helper still compiling it."""
     monkeypatch.delitem(svd_path._COMPILED, key, raising=False)
-    monkeypatch.setitem(compiled._AHEAD, svd_path._helper_key(*key), compiled.start_helper("pass"))
+    helper = svd_path._helper_key(*key)
+    monkeypatch.setitem(compiled._AHEAD, helper, compiled.start_helper("pass"))
     monkeypatch.delitem(svd_path._STAND_INS, key, raising=False)
+    exited = compiled.helper_exited
+    monkeypatch.setattr(compiled, "helper_exited", lambda asked: asked != helper and exited(asked))
 
 
 def _call(address: int, F: np.ndarray, params: np.ndarray, order: int):
@@ -369,6 +374,47 @@ def test_forms_assemble_before_the_helper_is_done(monkeypatch):
     second = dolfinx.fem.petsc.assemble_vector(residual).array.copy()
     np.testing.assert_array_equal(first, expected)
     np.testing.assert_array_equal(second, expected)
+
+
+def test_forms_dropped_before_the_stand_in_binds_are_written_safely(monkeypatch):
+    """The stand-in's first call writes the path's address into constants of forms that may be
+    gone: DOLFINx's value array does not keep its Constant alive, so the binding must, until then.
+    """
+    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 2, 2)
+    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    u = dolfinx.fem.Function(space)
+    u.interpolate(lambda x: np.stack([-1.6 * x[0] * x[1], 0.1 * x[0]]))  # inverts some cells
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 2)
+    _pretend_a_helper_compiles(monkeypatch, key)
+    dropped = di.HyperelasticForms(u, material)
+    assert dropped.residual is not None  # built: bound to the stand-in
+    owner = weakref.ref(_compat.cpp_object(dropped.constants))
+    del dropped
+    gc.collect()
+    kept = owner()  # alive only through the binding until here
+    later = di.HyperelasticForms(u, material)
+    dolfinx.fem.petsc.assemble_vector(later.residual)  # the stand-in's first call binds both
+    address = svd_path.svd_path_address(*key)
+    assert kept.value[SVD_PATH_SLOT : SVD_PATH_SLOT + 1].view(np.int64)[0] == address
+    del kept
+    gc.collect()
+    assert owner() is None  # released once bound
+
+
+def test_binding_after_the_helper_exited_needs_no_stand_in(monkeypatch):
+    material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
+    key = (material.model.model_id, material.extension_id, 3)
+    _pretend_a_helper_compiles(monkeypatch, key)
+    waiting = []
+    svd_path.bind_svd_path(*key, waiting.append)
+    monkeypatch.setattr(compiled, "helper_exited", lambda asked: True)
+    later = []
+    svd_path.bind_svd_path(*key, later.append)
+    address = svd_path.svd_path_address(*key)
+    assert later == [address]
+    assert waiting[1:] == [address] and waiting[0] != address  # the stand-in, then the path
+    assert not svd_path._STAND_INS[key][1]
 
 
 def test_failed_helper_leaves_the_compilation_to_the_caller(monkeypatch, caplog):

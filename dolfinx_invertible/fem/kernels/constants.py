@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dolfinx_invertible import _compat
 from dolfinx_invertible.constitutive.parameters import PARAMETER_COUNT
 from dolfinx_invertible.constitutive.svd_path import bind_svd_path
 from dolfinx_invertible.fem.kernels.tables import ReferenceTables
@@ -144,17 +145,21 @@ def pack_constants(
     )
 
 
-def set_svd_path(constants: np.ndarray, material, dimension: int) -> None:
-    """Write the address of the material's SVD path into packed ``constants``.
+def set_svd_path(constant, material, dimension: int) -> None:
+    """Write the address of the material's SVD path into the packed constants of ``constant``.
 
+    ``constant`` is the DOLFINx Constant holding the array :func:`pack_constants` made.
     Compiles the SVD path or loads it from numba's disk cache. While a helper process compiles
     it (:func:`~dolfinx_invertible.constitutive.svd_path.compile_svd_path_ahead`), the slot
     holds a stand-in instead, which waits for the helper when a point first needs the path and
-    then writes the path's own address into ``constants``
+    then writes the path's own address into the constants
     (:func:`~dolfinx_invertible.constitutive.svd_path.bind_svd_path`).
     """
+    # The C++ Constant, not a view of its values: DOLFINx's value array does not keep the
+    # Constant alive, and the stand-in may write after the forms that packed it are gone.
+    owner = _compat.cpp_object(constant)
 
     def bind(address: int) -> None:
-        constants[SVD_PATH_SLOT] = _bits(address)
+        owner.value[SVD_PATH_SLOT] = _bits(address)
 
     bind_svd_path(material.model.model_id, material.extension_id, dimension, bind)
