@@ -65,20 +65,22 @@ class _ReusedMatrix:
     of every cell's entries into the sparse matrix.
     """
 
-    def __init__(self, form, matrix: PETSc.Mat, geometry: np.ndarray) -> None:
+    def __init__(self, form, matrix: PETSc.Mat, mesh) -> None:
         self.form = form
         self.matrix = matrix
-        self._geometry = geometry
+        self._mesh = mesh
         self._seen: tuple[np.ndarray, list[np.ndarray], np.ndarray] | None = None
 
-    def _unchanged(self, constants: np.ndarray, coefficients: list[np.ndarray]) -> bool:
+    def _unchanged(
+        self, constants: np.ndarray, coefficients: list[np.ndarray], geometry: np.ndarray
+    ) -> bool:
         if self._seen is None:
             return False
         seen_constants, seen_coefficients, seen_geometry = self._seen
         return (
             np.array_equal(constants, seen_constants)
             and all(map(np.array_equal, coefficients, seen_coefficients))
-            and np.array_equal(self._geometry, seen_geometry)
+            and np.array_equal(geometry, seen_geometry)
         )
 
     def update(self, bcs: list) -> bool:
@@ -88,16 +90,17 @@ class _ReusedMatrix:
         fall outside the sparsity pattern of the problem's matrix cannot be added to it as is.
         """
         constants, coefficients = _compat.form_data(self.form)
+        geometry = self._mesh.geometry.x
         # Assembly is collective: every rank reassembles if the data changed on any.
         comm = self.matrix.getComm().tompi4py()
-        if comm.allreduce(self._unchanged(constants, coefficients), op=MPI.LAND):
+        if comm.allreduce(self._unchanged(constants, coefficients, geometry), op=MPI.LAND):
             return True
         self.matrix.zeroEntries()
         _compat.assemble_matrix_into(self.matrix, self.form, bcs, 0.0)
         self.matrix.assemble()
         if self.matrix.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["mallocs"] > 0:
             return False
-        self._seen = (constants, [array.copy() for array in coefficients], self._geometry.copy())
+        self._seen = (constants, [array.copy() for array in coefficients], geometry.copy())
         return True
 
     def add_to(self, matrix: PETSc.Mat) -> None:
@@ -184,7 +187,7 @@ class EnergyProblem:
         # Bilinear forms that do not read u, reused between assemblies (the first form sets the
         # sparsity pattern and is always assembled).
         self._reused = [
-            _ReusedMatrix(form, self.create_matrix(), u.function_space.mesh.geometry.x)
+            _ReusedMatrix(form, self.create_matrix(), u.function_space.mesh)
             for form in self.jacobian_forms[1:]
             if not _reads(form, u)
         ]
