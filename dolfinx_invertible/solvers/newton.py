@@ -64,6 +64,8 @@ class _SolveState:
     watchdog_spent: bool = False  # after one failed watch, this solve backtracks monotonically
     blend_rung: int = 0  # index of the last weight of K − K₊ that kept the blend definite
     blended_iterations: int = 0
+    # Π and its terms at the point in EnergyMinimizer._energy_point, the last one evaluated.
+    last_energy: tuple[float, np.ndarray] | None = None
 
 
 @dataclasses.dataclass
@@ -242,6 +244,7 @@ class EnergyMinimizer:
         self._work = problem.create_vector()
         self._watch_origin = problem.create_vector()
         self._watch_direction = problem.create_vector()
+        self._energy_point = problem.create_vector()
         self._diagonal = problem.create_vector()
         self._matrix = problem.create_matrix()
         self._matrix.setNearNullSpace(rigid_body_near_nullspace(space))
@@ -479,10 +482,17 @@ class EnergyMinimizer:
         return False
 
     def _energy_at(self, vector: PETSc.Vec) -> tuple[float, np.ndarray]:
+        # The line search ends on the point it accepted, and SNES steps there: the next
+        # iteration starts from the energy evaluated last (within a solve, Π depends on u only).
+        state = self._state
+        if state.last_energy is not None and vector.equal(self._energy_point):
+            return state.last_energy
         self.problem.update_solution(vector)
         terms = self.problem.energy_terms()
         total = float(np.sum(terms))
-        return (total if math.isfinite(total) else math.inf), terms
+        state.last_energy = (total if math.isfinite(total) else math.inf), terms
+        vector.copy(self._energy_point)
+        return state.last_energy
 
     def _backtrack(self, x: PETSc.Vec, y: PETSc.Vec) -> bool:
         """Shorten ``y`` until the energy test passes; return whether the full step did."""

@@ -170,6 +170,39 @@ def test_neo_hookean_load_steps_converge_with_energy_decrease():
     assert tip[2] < -0.5  # hangs down by a visible fraction of its length
 
 
+def _solve_counting_energy_assemblies(monkeypatch, forget: bool) -> tuple:
+    """Solve the cantilever at load 0.5; with ``forget``, every energy is assembled afresh."""
+    case = cantilever()
+    solver = EnergyMinimizer(case.problem)
+    assemblies = []
+    terms = case.problem.energy_terms
+    monkeypatch.setattr(case.problem, "energy_terms", lambda: assemblies.append(1) or terms())
+    if forget:
+        energy_at = EnergyMinimizer._energy_at
+
+        def forgetful(self, vector):
+            self._state.last_energy = None
+            return energy_at(self, vector)
+
+        monkeypatch.setattr(EnergyMinimizer, "_energy_at", forgetful)
+    result = solve_at(case, solver, 0.5)
+    monkeypatch.undo()
+    return result, len(assemblies), case.u.x.array.copy()
+
+
+def test_line_search_starts_from_the_energy_of_the_point_it_accepted(monkeypatch):
+    """Each iteration's line search starts at the point the last one accepted: its energy is
+    known, and taking it changes nothing but the number of energy assemblies."""
+    recomputed, recomputed_count, u_recomputed = _solve_counting_energy_assemblies(
+        monkeypatch, forget=True
+    )
+    reused, reused_count, u_reused = _solve_counting_energy_assemblies(monkeypatch, forget=False)
+    assert reused.newton_iterations == recomputed.newton_iterations >= 3
+    assert reused.residual_history == recomputed.residual_history
+    np.testing.assert_array_equal(u_reused, u_recomputed)
+    assert recomputed_count - reused_count >= reused.newton_iterations - 1
+
+
 def test_split_forms_match_single_form():
     single, split = cantilever(), cantilever(split=True)
     results = []
