@@ -216,12 +216,25 @@ def seconds(function: Callable[[], object], comm=None) -> float:
     return elapsed
 
 
-def interleaved(jobs: dict[str, Callable[[], object]], repeats: int, comm=None) -> dict:
-    """Seconds per repeat of each job, jobs interleaved so machine noise hits all alike."""
-    samples: dict[str, list[float]] = {name: [] for name in jobs}
-    for _ in range(repeats):
-        for name, job in jobs.items():
-            samples[name].append(seconds(job, comm))
+def interleaved(jobs: dict[tuple[str, str], Callable[[], object]], repeats: int, comm=None) -> dict:
+    """Seconds per repeat of each job ``(case, operation)``, interleaved so noise hits all alike.
+
+    Every repeat runs the operations in turn (in the order first given), each over all cases,
+    and the cases' order rotates by one per repeat. So a job follows a job of its own kind: a
+    Newton step sets up a solver of tens of MB, which evicts from the caches what the next
+    assembly then reads from memory again, and in plain case order every case's assembly but
+    the first case's would follow one. Which case opens a repeat, after the last job of the
+    previous one, rotates. The order is the same on every rank.
+    """
+    samples: dict[tuple[str, str], list[float]] = {key: [] for key in jobs}
+    cases = list(dict.fromkeys(case for case, _ in jobs))
+    operations = list(dict.fromkeys(operation for _, operation in jobs))
+    for repeat in range(repeats):
+        shift = repeat % len(cases)
+        for operation in operations:
+            for case in cases[shift:] + cases[:shift]:
+                if (case, operation) in jobs:
+                    samples[case, operation].append(seconds(jobs[case, operation], comm))
     return samples
 
 

@@ -12,6 +12,7 @@ import json
 import pytest
 
 from dolfinx_invertible.bench import assembly as bench_assembly
+from dolfinx_invertible.bench import common as bench_common
 from dolfinx_invertible.bench import compile as bench_compile
 from dolfinx_invertible.bench import memory as bench_memory
 from dolfinx_invertible.bench import points as bench_points
@@ -122,3 +123,22 @@ def test_points_report_covers_every_stage_and_the_paths_taken():
         assert rest[stage]["svd_share"] == 0.0
         assert extension[stage]["svd_share"] == extension["point energy"]["svd_share"] > 0.95
     assert bench_points.table(report)
+
+
+def test_interleaved_jobs_follow_their_own_kind_and_rotate_the_cases():
+    """A Newton step must not sit before one case's assembly only (it evicts the caches)."""
+    calls = []
+    cases, operations = ("a", "b", "c"), ("residual", "tangent", "newton_step")
+    jobs = {
+        (case, operation): (lambda key=(case, operation): calls.append(key))
+        for case in cases
+        for operation in operations
+        if (case, operation) != ("c", "newton_step")
+    }
+    samples = bench_common.interleaved(jobs, repeats=6)
+    assert all(len(values) == 6 for values in samples.values())
+    repeats = [calls[start : start + len(jobs)] for start in range(0, len(calls), len(jobs))]
+    for repeat in repeats:
+        kinds = [operations.index(operation) for _, operation in repeat]
+        assert kinds == sorted(kinds)  # all residuals, then all tangents, then the steps
+    assert sorted(repeat[0][0] for repeat in repeats) == sorted(cases * 2)
