@@ -197,9 +197,16 @@ def test_line_search_starts_from_the_energy_of_the_point_it_accepted(monkeypatch
         monkeypatch, forget=True
     )
     reused, reused_count, u_reused = _solve_counting_energy_assemblies(monkeypatch, forget=False)
+    # The same steps; on several ranks the parallel factorisation is reproducible only to
+    # round-off from one solve to the next.
     assert reused.newton_iterations == recomputed.newton_iterations >= 3
-    assert reused.residual_history == recomputed.residual_history
-    np.testing.assert_array_equal(u_reused, u_recomputed)
+    scale = recomputed.residual_history[0]
+    np.testing.assert_allclose(
+        reused.residual_history, recomputed.residual_history, rtol=0, atol=1e-12 * scale
+    )
+    np.testing.assert_allclose(
+        u_reused, u_recomputed, rtol=0, atol=1e-12 * np.abs(u_recomputed).max()
+    )
     assert recomputed_count - reused_count >= reused.newton_iterations - 1
 
 
