@@ -1,7 +1,13 @@
 """Nonlinear solvers: energy minimisation with PETSc SNES, load stepping, dynamics.
 
 - :mod:`.problem`: :class:`EnergyProblem`, the sum of compiled forms SNES evaluates;
-- :mod:`.newton`: :class:`EnergyMinimizer`, SNES Newton with an energy line search;
+- :mod:`.minimizer`: :class:`EnergyMinimizer`, SNES Newton wired to the three below;
+- :mod:`.directions`: which tangent an iteration uses, and the projected and blended
+  directions that replace a failed one;
+- :mod:`.line_search`: energy backtracking with a watchdog;
+- :mod:`.convergence`: residual tolerances scaled to the problem;
+- :mod:`.monitors`: what observers are told (:class:`NewtonIteration`, :class:`StepCap`,
+  :class:`StepAttempt`);
 - :mod:`.options`: default PETSc options and how they combine with the user's;
 - :mod:`.nullspace`: rigid-body modes for algebraic multigrid;
 - :mod:`.results`: :class:`SolveResult` and :class:`SolverError`;
@@ -19,7 +25,13 @@ from mpi4py import MPI  # noqa: F401
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem, external_forms
 from dolfinx_invertible.solvers.integrators import BDF2, INTEGRATORS, BackwardEuler
-from dolfinx_invertible.solvers.newton import EnergyMinimizer
+from dolfinx_invertible.solvers.minimizer import EnergyMinimizer
+from dolfinx_invertible.solvers.monitors import (
+    DIRECTION_KINDS,
+    NewtonIteration,
+    StepAttempt,
+    StepCap,
+)
 from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
 from dolfinx_invertible.solvers.options import (
     DEFAULT_OPTIONS_PREFIX,
@@ -46,6 +58,7 @@ __all__ = [
     "BDF2",
     "DEFAULT_OPTIONS_PREFIX",
     "DEFAULT_PETSC_OPTIONS",
+    "DIRECTION_KINDS",
     "DIRECT_SOLVE_LIMIT",
     "INTEGRATORS",
     "STAGES",
@@ -56,9 +69,12 @@ __all__ = [
     "HyperelasticProblem",
     "ImplicitDynamics",
     "InversionFreeStep",
+    "NewtonIteration",
     "Solvable",
     "SolveResult",
     "SolverError",
+    "StepAttempt",
+    "StepCap",
     "StepController",
     "StepLimit",
     "external_forms",

@@ -31,6 +31,7 @@ from dolfinx_invertible import _compat
 from dolfinx_invertible.constitutive.material import Material
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem
 from dolfinx_invertible.solvers.integrators import INTEGRATORS
+from dolfinx_invertible.solvers.monitors import MonitorList, NewtonIteration, StepAttempt, StepCap
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.stepping import StepController, take_step
 
@@ -81,7 +82,7 @@ class ImplicitDynamics:
         Passed to :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`
         (``quadrature_degree``, ``project`` (default ``"auto"``), ``petsc_options``,
         ``options_prefix``, ``linear_solver``, ``pc``, ``inversion_free``, ``step_limits``,
-        ``terms``, ...).
+        ``terms``, ``blend_after``, ...).
 
     Attributes
     ----------
@@ -166,9 +167,34 @@ class ImplicitDynamics:
         self.problem = HyperelasticProblem(
             u, material, bcs, external_energy=energy, **problem_options
         )
+        self._on_attempt = MonitorList()
         self._kinetic_energy_form = dolfinx.fem.form(
             0.5 * density * ufl.dot(self.velocity, self.velocity) * ufl.dx(domain=mesh)
         )
+
+    def add_monitor(
+        self,
+        *,
+        on_iteration: Callable[[NewtonIteration], None] | None = None,
+        on_step_cap: Callable[[StepCap], None] | None = None,
+        on_attempt: Callable[[StepAttempt], None] | None = None,
+    ) -> Callable[[], None]:
+        """Observe Newton iterations, step caps and every attempt of a time step.
+
+        ``on_iteration`` and ``on_step_cap`` see the minimiser of every step (see
+        :meth:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer.add_monitor`);
+        ``on_attempt`` gets a :class:`~dolfinx_invertible.solvers.monitors.StepAttempt` after
+        every attempt, accepted or not. Returns a function that removes them again.
+        """
+        remove_solver = self.problem.add_monitor(on_iteration=on_iteration, on_step_cap=on_step_cap)
+        remove_attempt = self._on_attempt.add(on_attempt) if on_attempt is not None else None
+
+        def remove() -> None:
+            remove_solver()
+            if remove_attempt is not None:
+                remove_attempt()
+
+        return remove
 
     @property
     def dt(self) -> float:
@@ -261,6 +287,7 @@ class ImplicitDynamics:
                 failure,
                 check,
                 escalate=self.problem.escalate,
+                on_attempt=self._on_attempt if self._on_attempt else None,
             )
         except Exception as error:
             if hasattr(error, "step_index"):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from mpi4py import MPI
@@ -16,7 +16,8 @@ from dolfinx_invertible.constitutive.material import Material
 from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
 from dolfinx_invertible.fem.forms import HyperelasticForms
 from dolfinx_invertible.fem.ufl_forms import UFLNeoHookeanForms
-from dolfinx_invertible.solvers.newton import EnergyMinimizer
+from dolfinx_invertible.solvers.minimizer import EnergyMinimizer
+from dolfinx_invertible.solvers.monitors import NewtonIteration, StepCap
 from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX
 from dolfinx_invertible.solvers.problem import EnergyProblem, EnergyTerm
 from dolfinx_invertible.solvers.results import SolveResult
@@ -69,8 +70,8 @@ class HyperelasticProblem:
         solve fails, the projected tangent's at the same iterate. ``result.tangent`` says which
         were used (``"exact+projected"`` for both), ``result.projected_iterations`` how often
         the projected one stepped in.
-    petsc_options, options_prefix, linear_solver, pc, displacement_tolerance
-        See :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`; command-line options
+    petsc_options, options_prefix, linear_solver, pc, displacement_tolerance, blend_after
+        See :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`; command-line options
         with the prefix override everything.
     inversion_free
         If given (a fraction in (0, 1), 0.1 in the classical method), cap every Newton step so
@@ -95,7 +96,7 @@ class HyperelasticProblem:
         The :class:`~dolfinx_invertible.fem.forms.HyperelasticForms` of the material.
     energy_problem, solver
         The :class:`~dolfinx_invertible.solvers.problem.EnergyProblem` that assembles the
-        summed forms and the :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`.
+        summed forms and the :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`.
     """
 
     def __init__(
@@ -116,6 +117,7 @@ class HyperelasticProblem:
         step_limits: Sequence[StepLimit] = (),
         terms: Sequence[EnergyTerm] = (),
         elastic: str = "kernels",
+        blend_after: int | None = None,
     ):
         mesh = u.function_space.mesh
         if project not in (True, False, "auto"):
@@ -166,8 +168,22 @@ class HyperelasticProblem:
             pc=pc,
             step_limits=limits,
             tangent_switch=self.forms.set_projection if project == "auto" else None,
+            tangent="projected" if project is True else "exact",
             displacement_tolerance=displacement_tolerance,
+            blend_after=blend_after,
         )
+
+    def add_monitor(
+        self,
+        *,
+        on_iteration: Callable[[NewtonIteration], None] | None = None,
+        on_step_cap: Callable[[StepCap], None] | None = None,
+    ) -> Callable[[], None]:
+        """Observe the Newton iterations and step caps of every solve; see the minimiser's.
+
+        Returns a function that removes the monitors again.
+        """
+        return self.solver.add_monitor(on_iteration=on_iteration, on_step_cap=on_step_cap)
 
     def escalate(self) -> bool:
         """Switch to the slower, more robust Newton (blended tangents); see the minimiser's."""

@@ -19,6 +19,7 @@ __all__ = [
     "DEFAULT_PETSC_OPTIONS",
     "DIRECT_SOLVE_LIMIT",
     "LINEAR_SOLVERS",
+    "MinimizerOptions",
     "linear_solver_options",
     "options_in_database",
 ]
@@ -111,6 +112,84 @@ def linear_solver_options(
         # 1.3 keeps it definite, for about 10 % more iterations on well-conditioned problems.
         options["mg_levels_ksp_chebyshev_esteig"] = "0,0.2,0,1.3"
     return options
+
+
+class MinimizerOptions:
+    """The PETSc options of a minimiser: defaults, linear solver and the caller's, in order.
+
+    Parameters
+    ----------
+    problem
+        The :class:`~dolfinx_invertible.solvers.problem.EnergyProblem`; one without energy gets
+        PETSc's ``l2`` line search (nothing to backtrack on).
+    petsc_options
+        The caller's options, without prefix or leading dash.
+    prefix
+        The solver's prefix in PETSc's database.
+    linear_solver, pc
+        See :func:`linear_solver_options`.
+
+    Attributes
+    ----------
+    values
+        Every option, the caller's last.
+    linear_solver
+        ``"direct"`` or ``"iterative"``: what :func:`linear_solver_options` chose.
+    absolute_tolerance
+        ``snes_atol`` where the caller or the database gives it, else ``None``.
+    """
+
+    def __init__(
+        self,
+        problem,
+        petsc_options: dict[str, Any] | None,
+        prefix: str,
+        linear_solver: str,
+        pc: str,
+    ) -> None:
+        space = problem.u.function_space
+        chosen = linear_solver_options(
+            linear_solver,
+            pc,
+            space.dofmap.index_map.size_global * space.dofmap.index_map_bs,
+            space.mesh.geometry.dim,
+            problem.comm.size,
+        )
+        self.linear_solver = "direct" if chosen["ksp_type"] == "preonly" else "iterative"
+        self.prefix = prefix
+        self.values = dict(DEFAULT_PETSC_OPTIONS)
+        if not problem.has_energy:
+            self.values["snes_linesearch_type"] = "l2"
+        self.values.update(chosen)
+        given = {name.lstrip("-"): value for name, value in (petsc_options or {}).items()}
+        self.values.update(given)
+        database = PETSc.Options(prefix)
+        atol = database.getReal("snes_atol") if database.hasName("snes_atol") else None
+        atol = given.get("snes_atol") if atol is None else atol
+        self.absolute_tolerance = None if atol is None else float(atol)
+
+    def in_effect(self) -> contextlib.AbstractContextManager[None]:
+        """Put the options in PETSc's database for the duration (:func:`options_in_database`)."""
+        return options_in_database(self.prefix, self.values)
+
+    def configure(self, snes: PETSc.SNES) -> str:
+        """Apply the options to ``snes`` (and its KSP and PC); return the line search type."""
+        with self.in_effect():
+            snes.setFromOptions()
+            # petsc4py 3.18 has no getter for the line search, so read what setFromOptions read.
+            return PETSc.Options(self.prefix).getString("snes_linesearch_type")
+
+    @contextlib.contextmanager
+    def override(self, snes: PETSc.SNES, options: dict[str, Any]) -> Iterator[None]:
+        """Apply further ``options`` to ``snes`` for the duration, then the previous ones."""
+        saved = dict(self.values)
+        self.values.update({name.lstrip("-"): value for name, value in options.items()})
+        try:
+            self.configure(snes)
+            yield
+        finally:
+            self.values = saved
+            self.configure(snes)
 
 
 @contextlib.contextmanager

@@ -116,10 +116,10 @@ class SolveResult:
     blended_iterations
         Of those, the iterations whose direction came from a blend K₊ + w (K − K₊) of the
         projected and the exact tangent that is still positive definite (see
-        :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`).
+        :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`).
     tolerance
         The absolute residual tolerance this solve used (see
-        :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`).
+        :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`).
     svd_share
         Where the solve ran our kernels: for each kernel ("energy", "residual", "tangent") the
         share of quadrature-point evaluations, summed over ranks and all assemblies of the
@@ -144,6 +144,56 @@ class SolveResult:
     blended_iterations: int = 0
     tolerance: float = 0.0
     svd_share: dict[str, float | None] = dataclasses.field(default_factory=dict)
+
+    @classmethod
+    def from_snes(
+        cls,
+        snes: PETSc.SNES,
+        *,
+        energy: float | None,
+        wall_time: float,
+        failure: tuple[int, str, str] | None,
+        converged_detail: str | None,
+        tolerance: float,
+        projected_iterations: int,
+        blended_iterations: int,
+    ) -> SolveResult:
+        """Return the result of a solve that ``snes`` has just finished.
+
+        ``failure`` is (reason, stage, detail) where the minimiser ended the solve itself,
+        ``converged_detail`` why it declared convergence where its own test did.
+        """
+        reason = int(snes.getConvergedReason())
+        converged = reason > 0
+        norm = float(snes.getFunctionNorm())
+        stage, detail = None, ""
+        if failure is not None:
+            _, stage, detail = failure
+        elif not converged:
+            stage, detail = "line search", f"SNES stopped with {snes_reason_name(reason)}"
+        elif converged_detail is not None:
+            detail = converged_detail
+        else:
+            detail = f"residual {norm:.3e} within the tolerance {max(tolerance, 0.0):.3e}"
+        history, _ = snes.getConvergenceHistory()
+        ksp_reason = snes.getKSP().getConvergedReason()
+        return cls(
+            converged=converged,
+            reason=reason,
+            reason_name=snes_reason_name(reason),
+            newton_iterations=int(snes.getIterationNumber()),
+            linear_iterations=int(snes.getLinearSolveIterations()),
+            residual_norm=norm,
+            energy=energy,
+            wall_time=wall_time,
+            residual_history=tuple(float(value) for value in history),
+            stage=stage,
+            detail=detail,
+            linear_reason_name=ksp_reason_name(ksp_reason) if ksp_reason != 0 else None,
+            projected_iterations=projected_iterations,
+            blended_iterations=blended_iterations,
+            tolerance=tolerance,
+        )
 
     def describe(self) -> str:
         """Return one line: the PETSc reason, and for a failure the stage and why."""

@@ -20,6 +20,7 @@ import dolfinx.fem
 import numpy as np
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.solvers.monitors import StepAttempt
 from dolfinx_invertible.solvers.results import SolverError, SolveResult
 
 __all__ = ["Solvable", "StepController", "solve_load_steps", "take_step"]
@@ -32,7 +33,7 @@ _SNAP = 1.0e-9
 class Solvable(Protocol):
     """What a stepping loop drives: a solve from the current state of ``u``.
 
-    :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer` and
+    :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer` and
     :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem` are both; an
     ``escalate()`` method, if the solver has one, is what the stepping calls when a step's cuts
     run out (see :func:`take_step`).
@@ -167,6 +168,7 @@ def take_step(
     failure: Callable[[float, float, SolveResult], str],
     check: Callable[[SolveResult], str | None] | None = None,
     escalate: Callable[[], bool] | None = None,
+    on_attempt: Callable[[StepAttempt], None] | None = None,
 ) -> tuple[float, SolveResult]:
     """Take one step from ``start``, cutting and retrying until it succeeds or the cuts run out.
 
@@ -189,8 +191,11 @@ def take_step(
         Optional test of a converged attempt: a reason to reject it (cut and retry) or ``None``.
     escalate
         Called once the cuts are used up: ``True`` if it switched the solver to a more robust
-        mode (e.g. :meth:`~dolfinx_invertible.solvers.newton.EnergyMinimizer.escalate`), and
+        mode (e.g. :meth:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer.escalate`), and
         the last size is then tried again with a fresh budget of cuts. The mode stays.
+    on_attempt
+        Called with a :class:`~dolfinx_invertible.solvers.monitors.StepAttempt` after every
+        attempt, accepted or not (before a failed one is restored).
 
     Returns
     -------
@@ -202,7 +207,10 @@ def take_step(
         size = controller.size(remaining)
         result = attempt(start, start + size)
         rejection = check(result) if (check is not None and result.converged) else None
-        if result.converged and rejection is None:
+        accepted = result.converged and rejection is None
+        if on_attempt is not None:
+            on_attempt(StepAttempt(start, start + size, result, accepted, rejection))
+        if accepted:
             controller.succeeded(size, result)
             return size, result
         restore(start)
@@ -266,6 +274,7 @@ def solve_load_steps(
     max_cuts: int = 6,
     on_step: Callable[[float, SolveResult], None] | None = None,
     controller: StepController | None = None,
+    on_attempt: Callable[[StepAttempt], None] | None = None,
 ) -> list[SolveResult]:
     """Quasi-static load stepping over a pseudo-time t from 0 to 1, cutting steps on failure.
 
@@ -279,7 +288,7 @@ def solve_load_steps(
     Parameters
     ----------
     solver
-        An :class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer` or a
+        An :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer` or a
         :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`
         (any :class:`Solvable`); its ``u`` holds the state at t = 0 on entry.
     update_load
@@ -294,6 +303,8 @@ def solve_load_steps(
     controller
         The step policy; by default a :class:`StepController` whose nominal step is the largest
         spacing of the targets.
+    on_attempt
+        Called after every attempt of a step, accepted or not (see :func:`take_step`).
 
     Returns
     -------
@@ -347,6 +358,7 @@ def solve_load_steps(
                     restore,
                     failure,
                     escalate=getattr(solver, "escalate", None),
+                    on_attempt=on_attempt,
                 )
             except SolverError as error:
                 error.step_index = step_index

@@ -189,7 +189,7 @@ def test_krylov_solver_chosen_in_petsc_options_replaces_the_direct_default(pc_ty
     for _ in range(3):
         result = dynamics.step()
         assert result.converged and result.linear_iterations > result.newton_iterations
-    assert dynamics.problem.solver.snes.getKSP().getPC().getType() == pc_type
+    assert dynamics.problem.solver.krylov_solver.getPC().getType() == pc_type
 
 
 def _collapse_step(blend: bool, nu: float):
@@ -203,10 +203,13 @@ def _collapse_step(blend: bool, nu: float):
     # collapsed state is indefinite but only just: the mass outweighs most of its negative
     # curvature.
     dynamics = ImplicitDynamics(
-        u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=1.5625e-3
+        u,
+        Material(NeoHookean(mu=mu, lam=lam), C2()),
+        density=1.0e3,
+        dt=1.5625e-3,
+        blend_after=0 if blend else None,
+        petsc_options={"snes_max_it": 200},
     )
-    dynamics.problem.solver.blend_after = 0 if blend else None
-    dynamics.problem.solver.snes.setTolerances(max_it=200)
     return dynamics.step()
 
 

@@ -1,0 +1,282 @@
+"""Newton directions: which tangent an iteration uses and what replaces a direction that fails.
+
+SNES solves with the tangent the problem assembles (:class:`NewtonDirections` chooses between
+the exact and the SPD-projected one where the problem can switch). The minimiser then judges the
+direction: a failed linear solve, a direction that is not a descent direction or, where the
+factorisation reports its inertia, an indefinite exact tangent, is replaced at the same iterate
+by a direction strategy:
+
+- :class:`ProjectedTangent`: solve with the SPD-projected tangent K₊. Always a descent
+  direction, but the projection drops all of the cells' negative curvature, even where the mass
+  or the rest of the body outweighs most of it, and Newton on K₊ then converges only linearly.
+- :class:`BlendedTangent`: solve with K₊ + w (K − K₊) for the largest weight w of a ladder
+  (511/512 … 1/64) whose factorisation has no negative pivot (needs a factorisation that
+  reports its inertia: MUMPS LDLᵀ); out of a collapsed state at λ/μ = 49 it takes 16 Newton
+  iterations where the projected tangent takes 86. It is a last resort, not the default: a step
+  that the blend brings home in many iterations has often travelled to another minimum of the
+  step's energy (an inverted one, in a collapse) where cutting the step would have kept the
+  motion resolved. The policy switches to it after ``blend_after`` projected iterations of a
+  solve, and the steppers escalate to it (``blend_after = 0``) when a step's cuts run out.
+
+With a tangent switch, the next tangent is the exact one only in Newton's local phase, after a
+full (unshortened) step; the projected one otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from petsc4py import PETSc
+
+from dolfinx_invertible.solvers.results import ksp_reason_name
+
+__all__ = [
+    "BLEND_WEIGHTS",
+    "BlendedTangent",
+    "NewtonDirections",
+    "ProjectedTangent",
+    "has_inertia",
+    "is_indefinite",
+]
+
+_SAME_PATTERN = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+
+#: Weights of the removed negative curvature tried in a blended tangent, from nearly the exact
+#: tangent down to nearly the projected one.
+BLEND_WEIGHTS = (1.0 - 1.0 / 512.0, 1.0 - 1.0 / 64.0, 1.0 - 1.0 / 8.0, 0.5, 1.0 / 8.0, 1.0 / 64.0)
+
+
+def has_inertia(ksp: PETSc.KSP) -> bool:
+    """Whether the linear solver's factorisation reports its inertia (MUMPS Cholesky/LDLᵀ)."""
+    pc = ksp.getPC()
+    return pc.getType() == PETSc.PC.Type.CHOLESKY and pc.getFactorSolverType() == "mumps"
+
+
+def is_indefinite(ksp: PETSc.KSP) -> bool:
+    """Whether the factorised operator has negative pivots (``False`` where none is known).
+
+    The preconditioner in effect decides, not our defaults: options may replace the
+    factorisation by a Krylov solver, whose PC has no factor to ask.
+    """
+    if not has_inertia(ksp):
+        return False
+    negative, _, _ = ksp.getPC().getFactorMatrix().getInertia()
+    return negative > 0
+
+
+class ProjectedTangent:
+    """Replace a direction by the SPD-projected tangent's at the same iterate."""
+
+    kind = "projected"
+
+    def direction(self, directions: NewtonDirections, x: PETSc.Vec, y: PETSc.Vec, ksp) -> str:
+        """Solve K₊ y = r at ``x``; return the kind of direction computed."""
+        directions.assemble_projected(x)
+        directions.solve(ksp, y)
+        return self.kind
+
+
+class BlendedTangent:
+    """Replace a direction by the most exact positive definite blend of the two tangents.
+
+    K − K₊ is what the projection removed: the negative curvature of the cells, which the mass
+    (or the rest of the body) can outweigh. The blend K₊ + w (K − K₊) keeps as much of it as
+    leaves the assembled matrix positive definite (the factorisation's inertia decides). The
+    weights of :data:`BLEND_WEIGHTS` are tried from one rung above the last accepted one
+    downwards; if none is definite, the plain projected tangent's direction is used.
+    """
+
+    kind = "blended"
+
+    def __init__(self) -> None:
+        self.rung = 0  # index of the last weight that kept the blend definite
+        self._exact: PETSc.Mat | None = None
+        self._projected: PETSc.Mat | None = None
+
+    def direction(self, directions: NewtonDirections, x: PETSc.Vec, y: PETSc.Vec, ksp) -> str:
+        """Solve with the best definite blend at ``x``; return the kind of direction computed."""
+        matrix = directions.matrix
+        # The exact tangent SNES just factorised, before the projected one overwrites it.
+        self._exact = matrix.copy(self._exact, structure=_SAME_PATTERN)
+        directions.assemble_projected(x)
+        self._exact.axpy(-1.0, matrix, structure=_SAME_PATTERN)  # K − K₊
+        self._projected = matrix.copy(self._projected, structure=_SAME_PATTERN)
+        for rung in range(max(self.rung - 1, 0), len(BLEND_WEIGHTS)):
+            self._projected.copy(matrix, structure=_SAME_PATTERN)
+            matrix.axpy(BLEND_WEIGHTS[rung], self._exact, structure=_SAME_PATTERN)
+            directions.solve(ksp, y)
+            if ksp.getConvergedReason() > 0 and not is_indefinite(ksp):
+                self.rung = rung
+                return self.kind
+        self.rung = len(BLEND_WEIGHTS)
+        self._projected.copy(matrix, structure=_SAME_PATTERN)
+        directions.solve(ksp, y)
+        return ProjectedTangent.kind
+
+
+class NewtonDirections:
+    """The direction policy of a minimiser: the tangent of each iteration and its replacement.
+
+    Parameters
+    ----------
+    problem
+        The :class:`~dolfinx_invertible.solvers.problem.EnergyProblem`.
+    matrix
+        The matrix SNES assembles the tangent into and factorises.
+    residual
+        The residual vector of the current iterate.
+    tangent_switch
+        ``tangent_switch(projected)`` switches the problem's tangent between exact and
+        SPD-projected; ``None`` means no replacement is possible.
+    blend_after
+        Projected iterations of a solve after which :class:`BlendedTangent` replaces
+        :class:`ProjectedTangent` (where the factorisation reports its inertia); ``None``
+        never, until :meth:`escalate`.
+    solve
+        ``solve(ksp, y)`` solves ``matrix · y = residual`` with ``ksp`` (the minimiser's
+        options in effect).
+    assembled
+        Called with each assembled tangent (the tolerances read its diagonal).
+    tangent
+        What the problem's own tangent is, as monitors name it: ``"exact"`` or ``"projected"``.
+
+    Attributes
+    ----------
+    kind
+        Where the current iteration's direction came from (:data:`.monitors.DIRECTION_KINDS`).
+    projected_iterations, blended_iterations
+        Iterations of the current solve whose direction came from the projected tangent (a
+        blend included) and from a blend.
+    replacement_linear_iterations
+        Krylov iterations of the current iteration's replacement solves.
+    """
+
+    def __init__(
+        self,
+        problem,
+        matrix: PETSc.Mat,
+        residual: PETSc.Vec,
+        *,
+        tangent_switch: Callable[[bool], None] | None,
+        blend_after: int | None,
+        solve: Callable[[PETSc.KSP, PETSc.Vec], None],
+        assembled: Callable[[PETSc.Mat], None],
+        tangent: str = "exact",
+    ) -> None:
+        if blend_after is not None and (int(blend_after) != blend_after or blend_after < 0):
+            raise ValueError(f"blend_after must be an integer >= 0 or None, got {blend_after!r}")
+        if tangent not in ("exact", "projected"):
+            raise ValueError(f"tangent must be 'exact' or 'projected', got {tangent!r}")
+        self.problem = problem
+        self.matrix = matrix
+        self.residual = residual
+        self.tangent_switch = tangent_switch
+        self.blend_after = None if blend_after is None else int(blend_after)
+        self.tangent = tangent
+        self._solve = solve
+        self._assembled = assembled
+        self._projected = ProjectedTangent()
+        self._blended = BlendedTangent()
+        self.start_solve()
+
+    @property
+    def replaceable(self) -> bool:
+        """Whether a failed direction can be replaced (the problem has a tangent switch)."""
+        return self.tangent_switch is not None
+
+    def start_solve(self) -> None:
+        """Begin a solve: the exact tangent first, no replacements counted."""
+        self._exact_next = True
+        self.projected_now = False
+        self.projected_iterations = 0
+        self.blended_iterations = 0
+        self.replacement_linear_iterations = 0
+        self.kind = self.tangent
+        self._blended.rung = 0
+
+    # -- the tangent of an iteration --------------------------------------------------------
+    def assemble(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
+        """SNES Jacobian callback: the exact tangent, or outside Newton's local phase projected."""
+        projected = self.tangent_switch is not None and not self._exact_next
+        self.projected_now = projected
+        self.kind = ProjectedTangent.kind if projected else self.tangent
+        self.replacement_linear_iterations = 0
+        if projected:
+            self.tangent_switch(True)
+        try:
+            self.problem.J(snes, x, A, P)
+        finally:
+            if projected:
+                self.tangent_switch(False)
+        self._assembled(A)
+
+    def assemble_projected(self, x: PETSc.Vec) -> None:
+        """Assemble the projected tangent at ``x`` into :attr:`matrix`."""
+        self.tangent_switch(True)
+        try:
+            self.assemble(None, x, self.matrix, self.matrix)
+        finally:
+            self.tangent_switch(False)
+
+    def solve(self, ksp: PETSc.KSP, y: PETSc.Vec) -> None:
+        """Solve :attr:`matrix` · y = residual, counting the Krylov iterations."""
+        self._solve(ksp, y)
+        self.replacement_linear_iterations += int(ksp.getIterationNumber())
+
+    def after_step(self, full_step: bool) -> None:
+        """Choose the next tangent: the exact one after a full step."""
+        self._exact_next = full_step
+
+    # -- judging and replacing --------------------------------------------------------------
+    def judge(self, ksp: PETSc.KSP, y: PETSc.Vec, *, has_energy: bool) -> tuple[bool, str]:
+        """Return whether ``y`` is usable, and if not why.
+
+        Usable: the linear solve converged and, on an energy, ``y`` is a descent direction, and
+        where the exact tangent was factorised with a known inertia, it was definite.
+        """
+        reason = ksp.getConvergedReason()
+        if reason < 0:
+            return False, f"the linear solve failed ({ksp_reason_name(reason)})"
+        if not has_energy:
+            return True, ""
+        check_inertia = self.tangent_switch is not None and not self.projected_now
+        if check_inertia and is_indefinite(ksp):
+            return False, "the exact tangent is indefinite"
+        slope = self.residual.dot(y)
+        if not (math.isfinite(slope) and slope > 0.0):
+            return False, "the Newton direction is not a descent direction"
+        return True, ""
+
+    def count_iteration(self) -> None:
+        """Count the iteration whose direction came from the projected tangent."""
+        if self.projected_now:
+            self.projected_iterations += 1
+
+    def replace(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
+        """Compute the direction at ``x`` again with the strategy in effect."""
+        blend = (
+            self.blend_after is not None
+            and self.projected_iterations >= self.blend_after
+            and has_inertia(ksp)
+        )
+        strategy = self._blended if blend else self._projected
+        kind = strategy.direction(self, x, y, ksp)
+        self.projected_iterations += 1
+        self.projected_now = True
+        self.kind = kind
+        if kind == BlendedTangent.kind:
+            self.blended_iterations += 1
+
+    def escalate(self, ksp: PETSc.KSP) -> bool:
+        """Blend from the first projected iteration on, for good; ``False`` if nothing changes.
+
+        Nothing changes without a tangent switch, without inertia from the linear solver (an
+        iterative one), or when blending from the first iteration already.
+        """
+        if self.tangent_switch is None or self.blend_after == 0:
+            return False
+        if not has_inertia(ksp):
+            return False
+        self.blend_after = 0
+        return True
