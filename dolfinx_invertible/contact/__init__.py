@@ -2,17 +2,18 @@
 
 - :mod:`.motion`: :class:`RigidMotion`, a prescribed rotation and translation in time;
 - :mod:`.obstacle`: :class:`Obstacle`, the signed gap, its derivatives and path crossings;
-- :mod:`.half_space`, :mod:`.sphere`, :mod:`.cylinder`, :mod:`.cone`: the shapes;
-- :mod:`.scene`: :class:`Scene`, several obstacles at once;
+- :mod:`.half_space`, :mod:`.sphere`, :mod:`.cylinder`, :mod:`.cone`, :mod:`.funnel`: the
+  shapes;
+- :mod:`.obstacles`: :class:`Obstacles`, several obstacles at once, their path crossings and
+  the collision-free step along straight paths;
 - :mod:`.barrier`: :class:`Barrier`, the log barrier b(d), and the rules for d̂ and κ;
 - :mod:`.potential`: :class:`BarrierPotential`, Σ wᵢ b(d(xᵢ)) with an SPD Hessian;
-- :mod:`.ccd`: continuous collision detection on straight paths;
 - :mod:`.boundary`: :class:`BoundaryVertices`, the mesh's boundary vertices and weights;
 - :mod:`.term`: :class:`ContactTerm`, the barrier as an energy term of a DOLFINx problem;
 - :mod:`.step`: :class:`CollisionFreeStep`, the collision-free Newton step cap.
 
-The modules up to :mod:`.ccd` need only NumPy; the last three need DOLFINx and are imported on
-first use of their names.
+The modules up to :mod:`.potential` need only NumPy; the last three need DOLFINx and are
+imported on first use of their names.
 """
 
 # The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
@@ -27,14 +28,14 @@ from dolfinx_invertible.contact.barrier import (
     barrier_distance,
     barrier_stiffness,
 )
-from dolfinx_invertible.contact.ccd import collision_free_step, first_crossing
 from dolfinx_invertible.contact.cone import Cone
 from dolfinx_invertible.contact.cylinder import Cylinder
+from dolfinx_invertible.contact.funnel import Funnel
 from dolfinx_invertible.contact.half_space import HalfSpace
 from dolfinx_invertible.contact.motion import RigidMotion
 from dolfinx_invertible.contact.obstacle import Obstacle
+from dolfinx_invertible.contact.obstacles import Obstacles
 from dolfinx_invertible.contact.potential import BarrierPotential, project_blocks
-from dolfinx_invertible.contact.scene import Scene
 from dolfinx_invertible.contact.sphere import Sphere
 
 _LAZY = {
@@ -63,15 +64,14 @@ __all__ = [
     "BarrierPotential",
     "Cone",
     "Cylinder",
+    "Funnel",
     "HalfSpace",
     "Obstacle",
+    "Obstacles",
     "RigidMotion",
-    "Scene",
     "Sphere",
     "barrier_distance",
     "barrier_stiffness",
-    "collision_free_step",
-    "first_crossing",
     "project_blocks",
     *_LAZY,
 ]

@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dolfinx_invertible.contact.ccd import first_crossing
 from dolfinx_invertible.contact.motion import RigidMotion
+from dolfinx_invertible.quadratic import first_positive_root_quadratic
 
 __all__ = ["Obstacle"]
 
@@ -91,7 +91,7 @@ class Obstacle:
             hessian = R @ hessian @ R.T
         return gap, gradient, hessian
 
-    def first_crossing(self, x: ArrayLike, direction: ArrayLike, t: float = 0.0) -> np.ndarray:
+    def path_crossing(self, x: ArrayLike, direction: ArrayLike, t: float = 0.0) -> np.ndarray:
         """First α > 0 at which the gap along ``x + α · direction`` reaches 0, at time ``t``.
 
         ``x`` and ``direction`` are (n, d). Returns (n,): ``inf`` where the path never reaches
@@ -99,7 +99,7 @@ class Obstacle:
         """
         y, q = self._path_in_body(x, direction, t)
         c0, c1, c2 = self._crossing_polynomial(y, q)
-        roots = first_crossing(c0, c1, c2)
+        roots = first_positive_root_quadratic(c0, c1, c2)
         roots[~(self._gap(y) > 0.0)] = 0.0
         return roots
 

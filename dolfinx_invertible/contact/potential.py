@@ -1,4 +1,4 @@
-"""The barrier potential of a weighted point set against a scene, with an SPD Hessian.
+"""The barrier potential of a weighted point set against rigid obstacles, with an SPD Hessian.
 
     E(x₁, …, xₙ) = Σᵢ wᵢ Σₒ b(dₒ(xᵢ, t)),
 
@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike
 
 from dolfinx_invertible.contact.barrier import Barrier
 from dolfinx_invertible.contact.obstacle import Obstacle
-from dolfinx_invertible.contact.scene import Scene
+from dolfinx_invertible.contact.obstacles import Obstacles
 
 __all__ = ["BarrierPotential", "project_blocks"]
 
@@ -45,14 +45,16 @@ class BarrierPotential:
 
     Parameters
     ----------
-    scene
-        The obstacles (a :class:`~dolfinx_invertible.contact.scene.Scene` or what it accepts).
+    obstacles
+        The :class:`~dolfinx_invertible.contact.obstacles.Obstacles`, or what it accepts.
     barrier
         The :class:`~dolfinx_invertible.contact.barrier.Barrier`.
     """
 
-    def __init__(self, scene: Scene | Obstacle | Sequence[Obstacle], barrier: Barrier) -> None:
-        self.scene = Scene(scene)
+    def __init__(
+        self, obstacles: Obstacles | Obstacle | Sequence[Obstacle], barrier: Barrier
+    ) -> None:
+        self.obstacles = Obstacles(obstacles)
         if not isinstance(barrier, Barrier):
             raise ValueError(f"barrier must be a Barrier, got {barrier!r}")
         self.barrier = barrier
@@ -60,9 +62,9 @@ class BarrierPotential:
     def _check(self, positions, weights) -> tuple[np.ndarray, np.ndarray]:
         positions = np.asarray(positions, dtype=np.float64)
         weights = np.asarray(weights, dtype=np.float64)
-        if positions.ndim != 2 or positions.shape[1] != self.scene.dimension:
+        if positions.ndim != 2 or positions.shape[1] != self.obstacles.dimension:
             raise ValueError(
-                f"positions must have shape (n, {self.scene.dimension}), got {positions.shape}"
+                f"positions must have shape (n, {self.obstacles.dimension}), got {positions.shape}"
             )
         if weights.shape != (len(positions),):
             raise ValueError(f"weights must have shape ({len(positions)},), got {weights.shape}")
@@ -71,14 +73,14 @@ class BarrierPotential:
     def energy(self, positions: ArrayLike, weights: ArrayLike, t: float = 0.0) -> float:
         """Return E; +∞ if a point is on or inside an obstacle."""
         positions, weights = self._check(positions, weights)
-        gaps = self.scene.gaps(positions, t)
+        gaps = self.obstacles.gaps(positions, t)
         if not np.all(gaps > 0.0):
             return math.inf
         return float(np.sum(weights[None, :] * self.barrier.value(gaps)))
 
     def _active_pairs(self, positions, t):
         """(obstacle, point) pairs with d < d̂, and every obstacle's gaps (obstacles, n)."""
-        gaps = self.scene.gaps(positions, t)
+        gaps = self.obstacles.gaps(positions, t)
         return gaps < self.barrier.distance, gaps
 
     def gradient(self, positions: ArrayLike, weights: ArrayLike, t: float = 0.0) -> np.ndarray:
@@ -88,7 +90,7 @@ class BarrierPotential:
         active, gaps = self._active_pairs(positions, t)
         feasible = np.all(gaps > 0.0, axis=0)
         active &= feasible[None, :]
-        for index, obstacle in enumerate(self.scene):
+        for index, obstacle in enumerate(self.obstacles):
             points = np.flatnonzero(active[index])
             if len(points) == 0:
                 continue
@@ -120,7 +122,7 @@ class BarrierPotential:
         slot[points] = np.arange(len(points))
         d = positions.shape[1]
         blocks = np.zeros((len(points), d, d))
-        for index, obstacle in enumerate(self.scene):
+        for index, obstacle in enumerate(self.obstacles):
             these = np.flatnonzero(active[index])
             if len(these) == 0:
                 continue

@@ -9,19 +9,42 @@ that the line search only ever evaluates states with every gap positive.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from mpi4py import MPI
 
+import numpy as np
 from petsc4py import PETSc
 
 from dolfinx_invertible.constitutive.validation import check_open_unit_interval
-from dolfinx_invertible.contact.ccd import collision_free_step
+from dolfinx_invertible.contact.boundary import BoundaryVertices
+from dolfinx_invertible.contact.obstacles import Obstacles
 
-if TYPE_CHECKING:
-    from dolfinx_invertible.contact.term import ContactTerm
+__all__ = ["CollisionFreeStep", "ContactState"]
 
-__all__ = ["CollisionFreeStep"]
+
+class ContactState(Protocol):
+    """What the step cap reads of a contact term (a :class:`~.term.ContactTerm` is one).
+
+    Attributes
+    ----------
+    boundary
+        The :class:`~dolfinx_invertible.contact.boundary.BoundaryVertices` this rank moves.
+    obstacles
+        The :class:`~dolfinx_invertible.contact.obstacles.Obstacles`.
+    time
+        The time at which the obstacles are evaluated.
+    comm
+        The communicator over which the step is reduced.
+    """
+
+    boundary: BoundaryVertices
+    obstacles: Obstacles
+    time: float
+    comm: MPI.Comm
+
+    def positions(self) -> np.ndarray:
+        """Return the current positions of this rank's boundary vertices, (n, d)."""
 
 
 class CollisionFreeStep:
@@ -30,13 +53,14 @@ class CollisionFreeStep:
     Parameters
     ----------
     term
-        The :class:`~dolfinx_invertible.contact.term.ContactTerm` whose vertices, obstacles
-        and time are checked.
+        The contact term (:class:`~dolfinx_invertible.contact.term.ContactTerm`, or anything
+        with the attributes of :class:`ContactState`) whose vertices, obstacles and time are
+        checked.
     fraction
         The share of the first crossing a step may reach, in (0, 1).
     """
 
-    def __init__(self, term: ContactTerm, *, fraction: float = 0.9) -> None:
+    def __init__(self, term: ContactState, *, fraction: float = 0.9) -> None:
         self.term = term
         self.fraction = check_open_unit_interval("fraction", fraction)
 
@@ -45,7 +69,7 @@ class CollisionFreeStep:
         term = self.term
         values = direction.getArray(readonly=True)
         motion = float(sign) * values[term.boundary.dofs]
-        local = collision_free_step(
-            term.scene, term.positions(), motion, term.time, fraction=self.fraction
+        local = term.obstacles.collision_free_step(
+            term.positions(), motion, term.time, fraction=self.fraction
         )
         return term.comm.allreduce(local, op=MPI.MIN)

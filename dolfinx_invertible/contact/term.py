@@ -26,8 +26,8 @@ from dolfinx_invertible.contact.barrier import (
 )
 from dolfinx_invertible.contact.boundary import BoundaryVertices
 from dolfinx_invertible.contact.obstacle import Obstacle
+from dolfinx_invertible.contact.obstacles import Obstacles
 from dolfinx_invertible.contact.potential import BarrierPotential
-from dolfinx_invertible.contact.scene import Scene
 from dolfinx_invertible.contact.step import CollisionFreeStep
 
 __all__ = ["ContactTerm"]
@@ -51,7 +51,7 @@ class ContactTerm:
         The displacement (vector Lagrange P1 or P2; on P2 the barrier acts on the vertex dofs).
     obstacles
         An :class:`~dolfinx_invertible.contact.obstacle.Obstacle`, several, or a
-        :class:`~dolfinx_invertible.contact.scene.Scene`.
+        :class:`~dolfinx_invertible.contact.obstacles.Obstacles`.
     material
         The body's :class:`~dolfinx_invertible.Material`: its Young's modulus sets κ. Not
         needed if ``youngs_modulus`` or ``stiffness`` is given.
@@ -71,9 +71,10 @@ class ContactTerm:
     ----------
     boundary
         The :class:`~dolfinx_invertible.contact.boundary.BoundaryVertices` this rank evaluates.
-    scene, barrier, potential
-        The obstacles, the :class:`~dolfinx_invertible.contact.barrier.Barrier` (d̂, κ) and
-        the :class:`~dolfinx_invertible.contact.potential.BarrierPotential`.
+    obstacles, barrier, potential
+        The :class:`~dolfinx_invertible.contact.obstacles.Obstacles`, the
+        :class:`~dolfinx_invertible.contact.barrier.Barrier` (d̂, κ) and the
+        :class:`~dolfinx_invertible.contact.potential.BarrierPotential`.
     time
         The current time of the obstacles.
     """
@@ -81,7 +82,7 @@ class ContactTerm:
     def __init__(
         self,
         u: dolfinx.fem.Function,
-        obstacles: Obstacle | Sequence[Obstacle] | Scene,
+        obstacles: Obstacle | Sequence[Obstacle] | Obstacles,
         material: Material | None = None,
         *,
         youngs_modulus: float | None = None,
@@ -91,11 +92,11 @@ class ContactTerm:
         time: float = 0.0,
     ) -> None:
         self.u = u
-        self.scene = Scene(obstacles)
+        self.obstacles = Obstacles(obstacles)
         self.boundary = BoundaryVertices(u.function_space)
-        if self.scene.dimension != self.boundary.dimension:
+        if self.obstacles.dimension != self.boundary.dimension:
             raise ValueError(
-                f"the obstacles are {self.scene.dimension}D but the mesh is "
+                f"the obstacles are {self.obstacles.dimension}D but the mesh is "
                 f"{self.boundary.dimension}D"
             )
         spacing = self.boundary.spacing
@@ -113,7 +114,7 @@ class ContactTerm:
                 youngs_modulus = material.model.youngs_modulus
             stiffness = barrier_stiffness(youngs_modulus, spacing)
         self.barrier = Barrier(distance, stiffness)
-        self.potential = BarrierPotential(self.scene, self.barrier)
+        self.potential = BarrierPotential(self.obstacles, self.barrier)
         self.comm = u.function_space.mesh.comm
         self.time = 0.0
         self.set_time(time)
@@ -132,7 +133,7 @@ class ContactTerm:
 
     def gaps(self) -> np.ndarray:
         """Gaps of this rank's boundary vertices to every obstacle, (obstacles, n)."""
-        return self.scene.gaps(self.positions(), self.time)
+        return self.obstacles.gaps(self.positions(), self.time)
 
     def minimum_gap(self) -> float:
         """Smallest gap of any boundary vertex to any obstacle, over all ranks."""
@@ -157,8 +158,8 @@ class ContactTerm:
 
         −Σᵢ ∂E/∂xᵢ over all boundary vertices and ranks, a vector of d entries.
         """
-        scene = self.scene if obstacle is None else Scene(self.scene[obstacle])
-        potential = BarrierPotential(scene, self.barrier)
+        acting = self.obstacles if obstacle is None else Obstacles(self.obstacles[obstacle])
+        potential = BarrierPotential(acting, self.barrier)
         gradient = potential.gradient(self.positions(), self.boundary.weights, self.time)
         return -self.comm.allreduce(np.sum(gradient, axis=0), op=MPI.SUM)
 
@@ -183,18 +184,20 @@ class ContactTerm:
         if not (math.isfinite(target) and target > 0.0):
             raise ValueError(f"gap must be a finite number > 0, got {gap!r}")
         positions = self.positions()
-        infeasible = np.flatnonzero(~np.all(self.scene.gaps(positions, self.time) > 0.0, axis=0))
+        infeasible = np.flatnonzero(
+            ~np.all(self.obstacles.gaps(positions, self.time) > 0.0, axis=0)
+        )
         if len(infeasible):
             points = positions[infeasible]
             for _ in range(_SEPARATION_PASSES):
-                for obstacle in self.scene:
+                for obstacle in self.obstacles:
                     gaps, gradients, _ = obstacle.gap_derivatives(points, self.time)
                     short = gaps < target
                     length2 = np.einsum("ij,ij->i", gradients, gradients)
                     short &= length2 > 0.0
                     shift = (target - gaps[short]) / length2[short]
                     points[short] += shift[:, None] * gradients[short]
-                if np.all(self.scene.gaps(points, self.time) >= 0.5 * target):
+                if np.all(self.obstacles.gaps(points, self.time) >= 0.5 * target):
                     break
             dofs = self.boundary.dofs[infeasible]
             self.u.x.array[dofs] = points - self.boundary.reference[infeasible]
@@ -241,4 +244,7 @@ class ContactTerm:
         )
 
     def __repr__(self) -> str:
-        return f"ContactTerm(scene={self.scene!r}, barrier={self.barrier!r}, time={self.time!r})"
+        return (
+            f"ContactTerm(obstacles={self.obstacles!r}, barrier={self.barrier!r}, "
+            f"time={self.time!r})"
+        )

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from contact_helpers import random_points, shapes
 
-from dolfinx_invertible.contact import Cone, Cylinder, HalfSpace, RigidMotion, Scene, Sphere
+from dolfinx_invertible.contact import Cone, Cylinder, HalfSpace, Obstacles, RigidMotion, Sphere
 from dolfinx_invertible.contact.motion import rotation_matrix
 
 H = 1e-6
@@ -190,16 +190,16 @@ def test_rotation_matrix_is_the_rotation_about_its_axis():
     assert np.cross(v, w) @ axis == pytest.approx(math.sin(angle))
 
 
-def test_scene_evaluates_every_obstacle():
+def test_obstacles_evaluate_every_obstacle():
     obstacles = [obstacle for _, obstacle in shapes(3, moving=True)]
-    scene = Scene(obstacles)
+    together = Obstacles(obstacles)
     x = random_points(3, 20)
-    gaps = scene.gaps(x, TIME)
+    gaps = together.gaps(x, TIME)
     assert gaps.shape == (len(obstacles), 20)
     for index, obstacle in enumerate(obstacles):
         np.testing.assert_array_equal(gaps[index], obstacle.gap(x, TIME))
-    assert len(Scene(scene)) == len(obstacles)
-    assert Scene(obstacles[0]).obstacles == [obstacles[0]]
+    assert len(Obstacles(together)) == len(obstacles)
+    assert Obstacles(obstacles[0]).obstacles == [obstacles[0]]
 
 
 @pytest.mark.parametrize(
@@ -218,9 +218,9 @@ def test_scene_evaluates_every_obstacle():
         (lambda: RigidMotion(4), "dimension"),
         (lambda: RigidMotion(3, translation=(1.0, 0.0, 0.0)), "translation"),
         (lambda: Sphere((0.0, 0.0), 1.0, motion=RigidMotion(3)), "3D"),
-        (lambda: Scene([]), "at least one"),
-        (lambda: Scene([Sphere((0.0, 0.0), 1.0), Sphere((0.0, 0.0, 0.0), 1.0)]), "dimensions"),
-        (lambda: Scene([Sphere((0.0, 0.0), 1.0), "wall"]), "not an Obstacle"),
+        (lambda: Obstacles([]), "at least one"),
+        (lambda: Obstacles([Sphere((0.0, 0.0), 1.0), Sphere((0.0, 0.0, 0.0), 1.0)]), "dimensions"),
+        (lambda: Obstacles([Sphere((0.0, 0.0), 1.0), "wall"]), "not an Obstacle"),
         (lambda: Sphere((0.0, 0.0), 1.0).gap(np.zeros((3, 3))), r"\(n, 2\)"),
         (
             lambda: Sphere((0.0, 0.0), 1.0, motion=RigidMotion(2, translation=lambda t: (t,))).gap(
@@ -242,8 +242,8 @@ def test_numpy_layer_does_not_load_dolfinx():
         "import sys\n"
         "from dolfinx_invertible import contact\n"
         "shapes = [contact.HalfSpace((0, 1), 0), contact.Cone((0, 0), (1, 0), 1, 0)]\n"
-        "scene = contact.Scene(shapes)\n"
-        "contact.BarrierPotential(scene, contact.Barrier(0.1, 1.0))\n"
+        "obstacles = contact.Obstacles(shapes)\n"
+        "contact.BarrierPotential(obstacles, contact.Barrier(0.1, 1.0))\n"
         "names = ('dolfinx', 'petsc4py', 'ufl', 'basix')\n"
         "loaded = [name for name in names if name in sys.modules]\n"
         "assert not loaded, loaded\n"

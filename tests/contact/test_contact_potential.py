@@ -1,5 +1,5 @@
 """The barrier potential Σ wᵢ Σₒ b(dₒ(xᵢ)): gradient and exact Hessian by central differences for
-every shape (static and moving, 2D and 3D) and a scene of two; the projected Hessian is positive
+every shape (static and moving, 2D and 3D) and a set of two; the projected Hessian is positive
 semidefinite and equals the exact one where that already is; infeasible points. No DOLFINx.
 
 Gaps ≥ 0.05 with d̂ = 0.3 and a step of 1e-6: the barrier's derivatives vary on the scale of the
@@ -16,7 +16,7 @@ from dolfinx_invertible.contact import (
     Barrier,
     BarrierPotential,
     HalfSpace,
-    Scene,
+    Obstacles,
     Sphere,
     project_blocks,
 )
@@ -33,10 +33,10 @@ CASES = [
 IDS = [f"{d}D-{'moving' if m else 'static'}-{shapes(d)[i][0]}" for d, m, i in CASES]
 
 
-def near_points(scene, dimension, count=40, seed=0):
+def near_points(obstacles, dimension, count=40, seed=0):
     """Points with every gap in [0.05, ∞) and most within d̂ of an obstacle, and weights."""
     x = random_points(dimension, 4000, seed=seed)
-    gaps = scene.gaps(x, TIME)
+    gaps = obstacles.gaps(x, TIME)
     feasible = np.all(gaps > 0.05, axis=0)
     near = np.any(gaps < BARRIER.distance, axis=0)
     chosen = np.concatenate(
@@ -47,15 +47,18 @@ def near_points(scene, dimension, count=40, seed=0):
     return x[chosen], weights
 
 
-def scenes():
+def obstacle_sets():
     for dimension, moving, index in CASES:
-        yield Scene(shapes(dimension, moving)[index][1]), dimension
+        yield Obstacles(shapes(dimension, moving)[index][1]), dimension
     # Two obstacles acting on the same points: a floor inside a bowl.
-    yield Scene([HalfSpace((0.0, 0.0, 1.0), -0.6), Sphere((0.0, 0.0, 0.0), 1.0, inside=True)]), 3
+    yield (
+        Obstacles([HalfSpace((0.0, 0.0, 1.0), -0.6), Sphere((0.0, 0.0, 0.0), 1.0, inside=True)]),
+        3,
+    )
 
 
-SCENES = list(scenes())
-SCENE_IDS = [*IDS, "floor-in-bowl"]
+OBSTACLE_SETS = list(obstacle_sets())
+OBSTACLE_SET_IDS = [*IDS, "floor-in-bowl"]
 
 
 def energy_of_points(potential, x, weights):
@@ -64,10 +67,10 @@ def energy_of_points(potential, x, weights):
     )
 
 
-@pytest.mark.parametrize("scene, dimension", SCENES, ids=SCENE_IDS)
-def test_gradient_and_exact_hessian_by_central_differences(scene, dimension):
-    potential = BarrierPotential(scene, BARRIER)
-    x, weights = near_points(scene, dimension)
+@pytest.mark.parametrize("obstacles, dimension", OBSTACLE_SETS, ids=OBSTACLE_SET_IDS)
+def test_gradient_and_exact_hessian_by_central_differences(obstacles, dimension):
+    potential = BarrierPotential(obstacles, BARRIER)
+    x, weights = near_points(obstacles, dimension)
     gradient = potential.gradient(x, weights, TIME)
     points, blocks = potential.hessians(x, weights, TIME, project=False)
     full = np.zeros((len(x), dimension, dimension))
@@ -93,7 +96,7 @@ def test_gradient_and_exact_hessian_by_central_differences(scene, dimension):
         np.sum(energy_of_points(potential, x, weights))
     )
     # Points beyond d̂ of every obstacle contribute nothing.
-    far = np.all(scene.gaps(x, TIME) >= BARRIER.distance, axis=0)
+    far = np.all(obstacles.gaps(x, TIME) >= BARRIER.distance, axis=0)
     assert (
         far.any()
         and np.all(gradient[far] == 0.0)
@@ -101,10 +104,10 @@ def test_gradient_and_exact_hessian_by_central_differences(scene, dimension):
     )
 
 
-@pytest.mark.parametrize("scene, dimension", SCENES, ids=SCENE_IDS)
-def test_projected_hessian_is_positive_semidefinite(scene, dimension):
-    potential = BarrierPotential(scene, BARRIER)
-    x, weights = near_points(scene, dimension, seed=4)
+@pytest.mark.parametrize("obstacles, dimension", OBSTACLE_SETS, ids=OBSTACLE_SET_IDS)
+def test_projected_hessian_is_positive_semidefinite(obstacles, dimension):
+    potential = BarrierPotential(obstacles, BARRIER)
+    x, weights = near_points(obstacles, dimension, seed=4)
     points, exact = potential.hessians(x, weights, TIME, project=False)
     same, projected = potential.hessians(x, weights, TIME)
     np.testing.assert_array_equal(points, same)
@@ -120,7 +123,7 @@ def test_projected_hessian_is_positive_semidefinite(scene, dimension):
     np.testing.assert_allclose(
         projected[definite], exact[definite], atol=1e-10 * np.max(np.abs(exact))
     )
-    if isinstance(scene[0], Sphere) and not scene[0].inside:
+    if isinstance(obstacles[0], Sphere) and not obstacles[0].inside:
         # A ball curves towards the body: b′∇²d is negative, the projection must act.
         assert not definite.all()
 

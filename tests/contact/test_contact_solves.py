@@ -197,7 +197,7 @@ def test_descending_plate_presses_the_block_into_the_ground():
     # the gap it leaves, so each step starts with the top layer swept and separated.
     body = material()
     problem, term, u = resting_block(COMM, body)
-    floor = term.scene[0]
+    floor = term.obstacles[0]
     plate = HalfSpace(
         (0.0, 0.0, -1.0),
         -0.515,

@@ -80,7 +80,7 @@ def test_weights_are_a_boundary_quadrature_counting_each_vertex_once(cell, degre
     assert boundary.spacing == pytest.approx(expected_spacing)
 
 
-def active_scene():
+def active_obstacles():
     # The bottom of the unit cube just above a floor, its corners close to a bowl, and a cone
     # about the vertical axis whose wall passes near the vertical edges: all three curve away
     # from the body or are flat, so the exact Hessian is already positive semidefinite.
@@ -107,7 +107,7 @@ def term_on_unit_cube(degree=1, comm=COMM, **options):
     u = displacement(mesh, degree)
     smooth_displacement(u)
     options.setdefault("distance", 0.12)
-    term = ContactTerm(u, active_scene(), MATERIAL, **options)
+    term = ContactTerm(u, active_obstacles(), MATERIAL, **options)
     return term, u
 
 
@@ -228,8 +228,8 @@ def test_collision_free_step_is_exact_for_rigid_translations():
         return min(r.real for r in roots if abs(r.imag) < 1e-14 and r.real > 0)
 
     expected_bowl = min(sphere_root(point, -velocity) for point in x)
-    cone = active_scene()[2]
-    expected_cone = np.min(cone.first_crossing(x, np.tile(-velocity, (len(x), 1))))
+    cone = active_obstacles()[2]
+    expected_cone = np.min(cone.path_crossing(x, np.tile(-velocity, (len(x), 1))))
     expected = min(1.0, 0.9 * min(expected_bowl, expected_cone))
     assert limit.largest_step(vector, sign=-1.0) == pytest.approx(expected, rel=1e-12)
     assert expected < 1.0
@@ -243,7 +243,7 @@ def test_collision_free_step_is_exact_for_rigid_translations():
         * min(
             expected_floor,
             min(sphere_root(point, velocity) for point in x),
-            float(np.min(cone.first_crossing(x, np.tile(velocity, (len(x), 1))))),
+            float(np.min(cone.path_crossing(x, np.tile(velocity, (len(x), 1))))),
         ),
     )
     assert down == pytest.approx(expected_down, rel=1e-12)
