@@ -44,7 +44,7 @@ _LAZY = {
     "scalar_function_space": "dolfinx_invertible.fem.spaces",
     "HyperelasticProblem": "dolfinx_invertible.solvers.hyperelastic",
     "ImplicitDynamics": "dolfinx_invertible.solvers.dynamics",
-    "EnergyMinimizer": "dolfinx_invertible.solvers.newton",
+    "EnergyMinimizer": "dolfinx_invertible.solvers.minimizer",
     "EnergyProblem": "dolfinx_invertible.solvers.problem",
     "InversionFreeStep": "dolfinx_invertible.solvers.step_limit",
     "SolveResult": "dolfinx_invertible.solvers.results",
