@@ -2,7 +2,8 @@
 
 Each scene is a short declarative subclass of :class:`Scene` on the public API; the command
 line runs them (``dolfinx-invertible run SCENE``) through :func:`run_scene`, which writes the
-XDMF time series, the step log and ``summary.json``. :data:`SCENES` lists them by name.
+XDMF time series, the step log and ``summary.json``; a :class:`RunObserver` watches a run.
+:data:`SCENES` lists them by name.
 """
 
 from __future__ import annotations
@@ -12,10 +13,19 @@ import importlib
 # The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
 from mpi4py import MPI  # noqa: F401
 
+from dolfinx_invertible.scenes.observer import RunObserver
 from dolfinx_invertible.scenes.parameters import Parameters, make_material
 from dolfinx_invertible.scenes.scene import Scene
 
-__all__ = ["SCENES", "Parameters", "Scene", "get_scene", "make_material", "run_scene"]
+__all__ = [
+    "SCENES",
+    "Parameters",
+    "RunObserver",
+    "Scene",
+    "get_scene",
+    "make_material",
+    "run_scene",
+]
 
 #: Scene name -> "module:class"; imported on first use.
 SCENES = {

@@ -20,7 +20,7 @@ import json
 import math
 import os
 import signal
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from time import perf_counter
 from typing import Any
@@ -34,11 +34,13 @@ from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
 from dolfinx_invertible.fem.spaces import vector_function_space
 from dolfinx_invertible.io.step_log import json_ready
 from dolfinx_invertible.io.xdmf import ResultWriter
+from dolfinx_invertible.scenes.observer import RunObserver
 from dolfinx_invertible.scenes.outcome import relaxation_outcome, rest_distance
 from dolfinx_invertible.scenes.parameters import PROJECT_CHOICES, Parameters, make_material
 from dolfinx_invertible.scenes.scene import Scene
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem
+from dolfinx_invertible.solvers.monitors import NewtonIteration, StepAttempt, StepCap
 from dolfinx_invertible.solvers.results import SolverError, SolveResult
 from dolfinx_invertible.solvers.stepping import StepController, solve_load_steps
 
@@ -93,6 +95,12 @@ class Run:
     nan_encountered: bool = False
     svd_points: dict[str, list[float]] = dataclasses.field(default_factory=dict)
     started: float = dataclasses.field(default_factory=perf_counter)
+
+    @property
+    def minimizer(self):
+        """The :class:`~dolfinx_invertible.EnergyMinimizer` that solves every step."""
+        stepper = self.dynamics.problem if self.dynamics is not None else self.problem
+        return stepper.solver
 
     @property
     def kinetic_energy(self) -> float | None:
@@ -211,6 +219,8 @@ def run_scene(
     petsc_options: dict[str, Any] | None = None,
     comm=MPI.COMM_WORLD,
     on_step: Callable[[Run], None] | None = None,
+    observers: Sequence[RunObserver] = (),
+    problem_options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run a scene; return its summary (written to ``output/summary.json`` too).
 
@@ -231,6 +241,13 @@ def run_scene(
         The communicator.
     on_step
         Called with the :class:`Run` after every completed step.
+    observers
+        :class:`~dolfinx_invertible.scenes.observer.RunObserver` instances whose hooks see the
+        run: its start, every Newton iteration, step cap and attempt, every step and its end.
+    problem_options
+        Options of the problem that override the scene's and the parameters' (e.g.
+        ``{"linear_solver": "iterative", "blend_after": 0}``; see
+        :class:`~dolfinx_invertible.HyperelasticProblem`).
 
     Raises
     ------
@@ -258,6 +275,7 @@ def run_scene(
     if parameters.inversion_free is not None:
         options.setdefault("inversion_free", parameters.inversion_free)
     options.setdefault("elastic", parameters.elastic)
+    options.update(problem_options or {})
     terms, limits = scene.terms(u), scene.step_limits(u)
     if terms:
         options.setdefault("terms", terms)
@@ -291,6 +309,8 @@ def run_scene(
             u, material, bcs, external_energy=scene.external_energy(u), **options
         )
         run.controller = StepController(1.0 / parameters.steps)
+    observers = list(observers)
+    on_attempt = _watch(run, observers) if observers else None
     writer = ResultWriter(output / f"{scene.name}.xdmf", mesh) if output is not None else None
     dofs = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
     total = parameters.t_end if scene.dynamic else 1.0
@@ -302,6 +322,8 @@ def run_scene(
             with signals.deferred():
                 _record(run, writer, None)
             scene.record(run)
+            for observer in observers:
+                observer.start(run)
 
             def step_done(t: float, result: SolveResult) -> None:
                 run.time = t
@@ -314,6 +336,8 @@ def run_scene(
                 )
                 if on_step is not None:
                     on_step(run)
+                for observer in observers:
+                    observer.step(run)
 
             if run.dynamics is not None:
                 run.dynamics.advance(parameters.t_end, on_step=step_done)
@@ -324,6 +348,7 @@ def run_scene(
                     parameters.steps,
                     on_step=step_done,
                     controller=run.controller,
+                    on_attempt=on_attempt,
                 )
             completed = True
     except SolverError as error:
@@ -347,6 +372,8 @@ def run_scene(
         progress.close()
         if writer is not None:
             writer.close()
+    for observer in observers:
+        observer.end(run)
     final = summary(cell_diagnostics(u, material), comm)
     summary_data = _summary(run, dofs, completed=completed, converged=not failure, final=final)
     summary_data.update(failure)
@@ -374,6 +401,30 @@ def run_scene(
             np.save(output / name, np.asarray(data))
         _write_json(output / "summary.json", json_ready(summary_data))
     return json_ready(summary_data)
+
+
+def _watch(run: Run, observers: list[RunObserver]) -> Callable[[StepAttempt], None]:
+    """Connect the observers to the run's solver; return the callback of step attempts."""
+
+    def on_iteration(record: NewtonIteration) -> None:
+        for observer in observers:
+            observer.iteration(run, record)
+
+    def on_step_cap(cap: StepCap) -> None:
+        for observer in observers:
+            observer.step_cap(run, cap)
+
+    def on_attempt(attempt: StepAttempt) -> None:
+        for observer in observers:
+            observer.attempt(run, attempt)
+
+    if run.dynamics is not None:
+        run.dynamics.add_monitor(
+            on_iteration=on_iteration, on_step_cap=on_step_cap, on_attempt=on_attempt
+        )
+    else:
+        run.problem.add_monitor(on_iteration=on_iteration, on_step_cap=on_step_cap)
+    return on_attempt
 
 
 def _record(run: Run, writer: ResultWriter | None, result: SolveResult | None) -> None:

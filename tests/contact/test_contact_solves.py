@@ -149,8 +149,7 @@ def drop(comm, steps=30, on_iterate=None):
         boundary_update=term.set_time,
     )
     if on_iterate is not None:
-        snes = dynamics.problem.solver.snes
-        snes.setMonitor(lambda snes, iteration, norm: on_iterate(dynamics, term, snes))
+        dynamics.add_monitor(on_iteration=lambda record: on_iterate(term, record))
     history = []
     for _ in range(steps):
         dynamics.step()
@@ -162,8 +161,8 @@ def drop(comm, steps=30, on_iterate=None):
 def test_dropped_cube_never_penetrates_at_any_newton_iterate():
     seen = {"iterates": 0, "penetrations": 0, "smallest": math.inf}
 
-    def check(dynamics, term, snes):
-        dynamics.problem.energy_problem.update_solution(snes.getSolution())
+    def check(term, record):
+        # u holds the iterate during the call.
         seen["iterates"] += 1
         seen["penetrations"] += term.penetrations()
         seen["smallest"] = min(seen["smallest"], term.minimum_gap())
@@ -259,11 +258,11 @@ def test_ball_hits_a_resting_block_and_pushes_it():
         boundary_update=update,
     )
 
-    def check(snes, iteration, norm):
-        dynamics.problem.energy_problem.update_solution(snes.getSolution())
+    def check(record):
+        # u holds the iterate during the call.
         seen["penetrations"] += term.penetrations()
 
-    dynamics.problem.solver.snes.setMonitor(check)
+    dynamics.add_monitor(on_iteration=check)
     pushed = []
     for _ in range(8):
         dynamics.step()

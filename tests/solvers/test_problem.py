@@ -163,11 +163,11 @@ def test_plain_neo_hookean_with_inversion_free_steps_stays_uninverted():
     )
     worst = []
 
-    def monitor(snes, iteration, norm):
-        problem.energy_problem.update_solution(snes.getSolution())
+    def monitor(record):
+        # u holds the iterate during the call.
         worst.append(summary(cell_diagnostics(u, material), mesh.comm)["min_J"])
 
-    problem.solver.snes.setMonitor(monitor)
+    problem.add_monitor(on_iteration=monitor)
 
     def load(t):
         traction.value[2] = -60.0 * t

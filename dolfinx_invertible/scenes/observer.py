@@ -1,0 +1,48 @@
+"""Watching a scene run: the hooks :func:`~dolfinx_invertible.scenes.run_scene` calls.
+
+Subclass :class:`RunObserver`, override the hooks you need and pass an instance to
+``run_scene(..., observers=[...])``. Every hook gets the :class:`~.runner.Run` (the scene, the
+mesh, ``u``, the stepping objects and the run's statistics so far) and is called on every rank,
+so collective work (assembling, reducing) is allowed inside. The solver-level records are those
+of :mod:`dolfinx_invertible.solvers.monitors`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from dolfinx_invertible.solvers.monitors import NewtonIteration, StepAttempt, StepCap
+
+if TYPE_CHECKING:
+    from dolfinx_invertible.scenes.runner import Run
+
+__all__ = ["RunObserver"]
+
+
+class RunObserver:
+    """Hooks of a scene run; each does nothing unless overridden.
+
+    The order: :meth:`start` once the problem is built and the initial state recorded; for
+    every attempt of a step :meth:`iteration` after each Newton iteration (with ``u`` holding
+    the iterate) and :meth:`step_cap` for each cap of a step limit, then :meth:`attempt`; after
+    an accepted step :meth:`step`; at the end :meth:`end`, also after a failed step (not after
+    an interrupt), before the scene's own quantities are evaluated.
+    """
+
+    def start(self, run: Run) -> None:
+        """Before the first step."""
+
+    def iteration(self, run: Run, iteration: NewtonIteration) -> None:
+        """After every Newton iteration (and for the initial guess) of every attempt."""
+
+    def step_cap(self, run: Run, cap: StepCap) -> None:
+        """Whenever a step limit has capped a Newton direction."""
+
+    def attempt(self, run: Run, attempt: StepAttempt) -> None:
+        """After every attempt of a step, accepted or not (before a failed one is undone)."""
+
+    def step(self, run: Run) -> None:
+        """After every completed step, once its output is written."""
+
+    def end(self, run: Run) -> None:
+        """After the stepping ended, completed or failed."""
