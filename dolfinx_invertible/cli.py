@@ -10,13 +10,15 @@ Subcommands:
 - ``compile``: compile the DOLFINx cell kernels of the default materials
   (:data:`~dolfinx_invertible.fem.kernels.DEFAULT_MATERIALS`, 2D and 3D) into numba's disk
   cache, so that the first assembly of a script does not pay for it (``make setup`` runs it);
-- ``bench NAME``: a benchmark (``bench --help`` lists them).
+- ``bench NAME``: a benchmark (``bench --help`` lists them), from a source checkout: the
+  benchmarks are the repository's ``benchmarks/`` folder beside the package, not installed.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import logging
 import sys
 import time
@@ -49,15 +51,37 @@ def _compile(arguments: argparse.Namespace) -> int:
     return 0
 
 
-def _bench(arguments: argparse.Namespace) -> int:
-    from dolfinx_invertible.bench.threads import restart_with_one_thread
+def _benchmarks():
+    """Return the ``benchmarks`` package of the source checkout of this package, or None.
 
-    if getattr(arguments, "points", 1) < 1 or getattr(arguments, "repeats", 1) < 1:
-        print("--points and --repeats must be at least 1", file=sys.stderr)
-        return 2
-    restart_with_one_thread(arguments.bench_argv)
-    module = importlib.import_module(f"dolfinx_invertible.bench.{arguments.benchmark}")
-    return module.command(arguments)
+    The benchmarks are not installed: in a checkout they sit beside the package directory, at
+    the repository root (with ``pyproject.toml``), and are loaded from there by path, so that
+    no other ``benchmarks`` on ``sys.path`` stands in for them. One already loaded (``python
+    -m benchmarks``, the tests) is taken as it is.
+    """
+    loaded = sys.modules.get("benchmarks")
+    if loaded is not None:
+        return loaded
+    root = Path(__file__).resolve().parent.parent
+    folder = root / "benchmarks"
+    if not ((folder / "__init__.py").is_file() and (root / "pyproject.toml").is_file()):
+        return None
+    specification = importlib.util.spec_from_file_location(
+        "benchmarks", folder / "__init__.py", submodule_search_locations=[str(folder)]
+    )
+    package = importlib.util.module_from_spec(specification)
+    sys.modules["benchmarks"] = package
+    specification.loader.exec_module(package)
+    return package
+
+
+def _no_benchmarks(arguments: argparse.Namespace) -> int:
+    print(
+        "error: the benchmarks run from a source checkout of dolfinx_invertible (its "
+        "benchmarks/ folder); this installed package has none",
+        file=sys.stderr,
+    )
+    return 2
 
 
 def _list(arguments: argparse.Namespace) -> int:
@@ -304,7 +328,6 @@ def _report(arguments: argparse.Namespace) -> int:
 
 def parser() -> argparse.ArgumentParser:
     """Return the argument parser of the whole command line."""
-    from dolfinx_invertible.bench import BENCHMARKS
     from dolfinx_invertible.reports import REPORTS
     from dolfinx_invertible.scenes import SCENES, get_scene
 
@@ -357,14 +380,19 @@ def parser() -> argparse.ArgumentParser:
     )
     compile_parser.set_defaults(handler=_compile)
 
+    benchmarks = _benchmarks()
     bench_parser = commands.add_parser(
-        "bench", help="run a benchmark", description="Benchmarks; each prints a table and JSON."
+        "bench",
+        help="run a benchmark",
+        description="Benchmarks; each prints a table and JSON.",
+        # Outside a checkout every bench command line, --help included, gets the one error.
+        add_help=benchmarks is not None,
     )
-    benchmarks = bench_parser.add_subparsers(dest="benchmark", required=True, metavar="NAME")
-    for name, description in BENCHMARKS.items():
-        subparser = benchmarks.add_parser(name, help=description, description=description)
-        importlib.import_module(f"dolfinx_invertible.bench.{name}").add_arguments(subparser)
-        subparser.set_defaults(handler=_bench)
+    if benchmarks is None:
+        bench_parser.add_argument("arguments", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+        bench_parser.set_defaults(handler=_no_benchmarks)
+    else:
+        benchmarks.add_arguments(bench_parser)
     return top
 
 
@@ -381,7 +409,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     arguments, extra = top.parse_known_args(argv)
     if arguments.command == "run":
         arguments.petsc = extra
-    elif extra:
+    elif extra and arguments.handler is not _no_benchmarks:
         top.error(f"unrecognized arguments: {' '.join(extra)}")
     if arguments.command == "bench":
         arguments.bench_argv = argv[argv.index("bench") + 1 :]

@@ -11,13 +11,13 @@ import json
 
 import pytest
 
-from dolfinx_invertible.bench import assembly as bench_assembly
-from dolfinx_invertible.bench import common as bench_common
-from dolfinx_invertible.bench import compile as bench_compile
-from dolfinx_invertible.bench import memory as bench_memory
-from dolfinx_invertible.bench import points as bench_points
-from dolfinx_invertible.bench import scaling as bench_scaling
-from dolfinx_invertible.bench import solve as bench_solve
+from benchmarks import assembly as bench_assembly
+from benchmarks import common as bench_common
+from benchmarks import compile as bench_compile
+from benchmarks import memory as bench_memory
+from benchmarks import points as bench_points
+from benchmarks import scaling as bench_scaling
+from benchmarks import solve as bench_solve
 
 OPERATIONS = ("residual", "tangent", "newton_step")
 

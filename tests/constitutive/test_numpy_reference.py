@@ -1,6 +1,6 @@
 """The numba material against the independent NumPy reference, and the reference against itself.
 
-The reference (:mod:`dolfinx_invertible.bench.reference`) is first checked on its own: its stress,
+The reference (``numpy_reference.py`` beside this file) is first checked on its own: its stress,
 Hessian and tangent must be finite differences of its energy and stress. Only then is it a fair
 judge of the compiled :class:`dolfinx_invertible.Material`, which must agree with it to 1e-9
 relative on random points in 2D and 3D, inverted ones and ones on both sides of J = eps included.
@@ -11,11 +11,11 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import numpy_reference as reference
 import pytest
 from constitutive_helpers import compiled_caller
 
 from dolfinx_invertible import C2, Material, NeoHookean
-from dolfinx_invertible.bench import reference as reference
 from dolfinx_invertible.constitutive.extensions.c2 import threshold_parameter
 from dolfinx_invertible.constitutive.polynomial import first_root_in_unit_interval
 

@@ -2,7 +2,7 @@
 
 ``python -m dolfinx_invertible bench assembly [--cells 20] [--repeats 7] [--json PATH]`` times,
 on one mesh in one process with interleaved repeats (medians reported), the cases of
-:mod:`dolfinx_invertible.bench.common`:
+:mod:`benchmarks.common`:
 
 (a) UFL Neo-Hookean compiled by FFCx;
 (b) our Neo-Hookean + C2 at a state where no point is near the threshold (J ≈ 1.03);
@@ -31,7 +31,7 @@ from __future__ import annotations
 import argparse
 import statistics
 
-from dolfinx_invertible.bench import common
+from benchmarks import common
 from dolfinx_invertible.fem.forms import default_quadrature_degree
 
 OPERATIONS = ("residual", "tangent", "newton_step")

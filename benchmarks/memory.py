@@ -2,7 +2,7 @@
 
 ``python -m dolfinx_invertible bench memory [--cells 20] [--ranks 1] [--json PATH]`` runs, in a
 child process (``mpirun -n ranks``) so that nothing else is in its memory, our Neo-Hookean + C2
-kernels (fast-path state, ``b_fast`` of :mod:`dolfinx_invertible.bench.common`) on the unit cube
+kernels (fast-path state, ``b_fast`` of :mod:`benchmarks.common`) on the unit cube
 of cells³ × 6 P1 tetrahedra: build the mesh, the space, the forms, problem and Newton solver,
 then one Newton step (residual and tangent assembly with the Dirichlet condition + CG/GAMG solve
 with the solver's default options). Reported: the peak resident set size
@@ -19,7 +19,7 @@ import os
 import tempfile
 import time
 
-from dolfinx_invertible.bench import common
+from benchmarks import common
 
 TARGET_BYTES = 4 * 1024**3
 STAGES = ("imported", "mesh_and_space", "forms_and_solver", "newton_step")
@@ -35,7 +35,7 @@ def measure(cells: int) -> dict:
 
     import dolfinx  # noqa: F401
 
-    from dolfinx_invertible.bench.assembly import newton_solver
+    from benchmarks.assembly import newton_solver
 
     comm = MPI.COMM_WORLD
     peaks: dict = {}

@@ -7,7 +7,7 @@ tetrahedra, and times in each, with interleaved repeats (medians of the slowest 
 residual assembly, tangent assembly, and one Newton step (assembly with the Dirichlet condition
 + CG/GAMG solve with the solver's default options), for our Neo-Hookean + C2 kernels on the fast
 path (``b_fast``) and, as a reference for what the machine allows, FFCx's UFL Neo-Hookean
-(``a_ufl``); see :mod:`dolfinx_invertible.bench.common`. Reported: seconds, the speed-up
+(``a_ufl``); see :mod:`benchmarks.common`. Reported: seconds, the speed-up
 t(1 rank) / t(n ranks) and dofs per second. The quick default has 27 783 dofs; the full size
 (≥ 300 k dofs) is ``--cells 47`` (331 776 dofs).
 
@@ -23,7 +23,7 @@ import os
 import statistics
 import tempfile
 
-from dolfinx_invertible.bench import common
+from benchmarks import common
 
 OPERATIONS = ("residual", "tangent", "newton_step")
 DEFAULT_CASES = ("a_ufl", "b_fast")
@@ -37,7 +37,7 @@ def measure(cells: int, repeats: int, cases: tuple[str, ...] = DEFAULT_CASES) ->
     """
     from mpi4py import MPI
 
-    from dolfinx_invertible.bench.assembly import case_jobs
+    from benchmarks.assembly import case_jobs
 
     comm = MPI.COMM_WORLD
     space = common.unit_cube_space(comm, cells, 1)

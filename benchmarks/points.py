@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from dolfinx_invertible.bench import common
+from benchmarks import common
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.compiled import python_callable
 from dolfinx_invertible.constitutive.pointwise import point_energy, point_stress, point_tangent

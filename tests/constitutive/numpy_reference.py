@@ -2,10 +2,10 @@
 
 This module is the baseline a careful NumPy user would write for the material that
 :mod:`dolfinx_invertible` evaluates with numba kernels. It shares no code with the package on
-purpose: it exists to check the compiled kernels and to give the benchmark something honest to
-compare against. Every operation works on a whole batch at once (batched SVD, ``einsum``); the only
-Python loops run over iterations of the root solver or over the at most three index pairs, never
-over points.
+purpose: it exists to check the compiled kernels and to give the material benchmark
+(``benchmarks/material.py``) something honest to compare against. Every operation works on a
+whole batch at once (batched SVD, ``einsum``); the only Python loops run over iterations of the
+root solver or over the at most three index pairs, never over points.
 
 Maths (see ``docs/design.md``). With signed singular values ``sigma`` of ``F`` (polar
 convention) the Neo-Hookean energy is

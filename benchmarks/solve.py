@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from dolfinx_invertible.bench import common
+from benchmarks import common
 
 # Cook's membrane (mm): the classical plane geometry, extruded.
 LENGTH, LEFT_HEIGHT, RIGHT_BOTTOM, RIGHT_TOP, THICKNESS = 48.0, 44.0, 44.0, 60.0, 10.0

@@ -1,6 +1,6 @@
 """CPU time per point of the batch tangent, exact and projected, in three states near rest.
 
-``python tools/perf/tangent_points.py [repeats]``: Neo-Hookean + C2 (ε = 0.9, E = 1e3, ν = 0.3),
+``python benchmarks/tangent_points.py [repeats]``: Neo-Hookean + C2 (ε = 0.9, E = 1e3, ν = 0.3),
 48 000 points of F = s·I + 0.01·N(0, 1) for s = 1.00, 1.01, 0.97, ``Material.tangent``, medians.
 """
 

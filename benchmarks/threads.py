@@ -16,6 +16,8 @@ import os
 import sys
 from collections.abc import Sequence
 
+from benchmarks import command_line
+
 __all__ = ["THREAD_VARIABLES", "restart_with_one_thread", "threads_pinned"]
 
 THREAD_VARIABLES = {
@@ -34,11 +36,13 @@ def threads_pinned() -> bool:
 def restart_with_one_thread(argv: Sequence[str]) -> None:
     """Replace this process by ``python -m dolfinx_invertible bench *argv`` with one thread.
 
-    Returns only if the variables were already set when the process started.
+    The new process runs :func:`benchmarks.command_line`. Returns only if the variables were
+    already set when the process started.
     """
     if threads_pinned():
         return
     os.environ.update(THREAD_VARIABLES)
     sys.stdout.flush()
     sys.stderr.flush()
-    os.execv(sys.executable, [sys.executable, "-m", "dolfinx_invertible", "bench", *argv])
+    command = command_line(argv)
+    os.execv(command[0], command)

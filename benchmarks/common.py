@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from dolfinx_invertible.bench.threads import THREAD_VARIABLES
+from benchmarks import command_line
+from benchmarks.threads import THREAD_VARIABLES
 
 CASES = ("a_ufl", "b_fast", "b_random", "c_svd", "d_zero")
 # Uniform stretch of the benchmark states: 1.01 keeps every point on the fast path (J ≈ 1.03),
@@ -314,9 +315,10 @@ def child_environment(**extra: str) -> dict:
 def bench_command(subcommand: str, arguments: Sequence[str], ranks: int | None) -> list[str]:
     """Command line running ``python -m dolfinx_invertible bench subcommand ...``.
 
-    ``ranks`` None runs it as a plain process, otherwise under ``mpirun -n ranks``.
+    ``ranks`` None runs it as a plain process, otherwise under ``mpirun -n ranks``. The process
+    runs :func:`benchmarks.command_line`.
     """
-    command = [sys.executable, "-m", "dolfinx_invertible", "bench", subcommand, *arguments]
+    command = command_line([subcommand, *arguments])
     if ranks is None:
         return command
     return ["mpirun", "-n", str(ranks), *command]

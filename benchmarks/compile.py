@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from dolfinx_invertible.bench import common
+from benchmarks import common
 
 COLD_TARGET_SECONDS = 15.0
 WARM_TARGET_SECONDS = 2.0
@@ -117,7 +117,9 @@ def _petsc_reverse():
 
 def _source_stamps() -> dict:
     """Modification times of the package's source files: numba keys its cache on them."""
-    package = os.path.dirname(os.path.abspath(__file__))
+    import dolfinx_invertible
+
+    package = os.path.dirname(os.path.abspath(dolfinx_invertible.__file__))
     stamps = {}
     for folder, _, files in os.walk(package):
         for name in files:

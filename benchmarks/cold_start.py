@@ -3,9 +3,10 @@
 The window of the target ends at the assembled tangent, as in ``bench compile``; the energy
 kernel, compiled after it, is in the process totals printed beside it.
 
-Run with an empty cache for the cold case, again on the same cache for the warm one::
+Run from the repository root with an empty cache for the cold case, again on the same cache for
+the warm one::
 
-    NUMBA_CACHE_DIR=$(mktemp -d) python tools/perf/cold_start.py
+    NUMBA_CACHE_DIR=$(mktemp -d) python -m benchmarks.cold_start
 
 ``--profile`` adds numba's compile time per function (self and inclusive seconds, and how often
 each was compiled: a function compiled twice usually means a 2D and a 3D twin).
@@ -50,7 +51,7 @@ def main() -> None:
 
         event.register("numba:compile", Listener())
 
-    from dolfinx_invertible.bench.compile import first_assembly
+    from benchmarks.compile import first_assembly
 
     phases, _ = first_assembly(4, launch_time=START)
     usage = resource.getrusage(resource.RUSAGE_SELF)
