@@ -15,8 +15,8 @@ on one mesh in one process with interleaved repeats (medians reported), the case
 Three operations: residual assembly, tangent assembly, and one Newton step, i.e. residual and
 tangent assembly with the Dirichlet condition on x = 0 applied plus the conjugate-gradient/GAMG
 solve to the solver's default tolerance, with the KSP of
-:class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer`
-(:meth:`~dolfinx_invertible.solvers.newton.EnergyMinimizer.newton_direction`: same options,
+:class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`
+(:meth:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer.newton_direction`: same options,
 rigid-body near-nullspace; ``linear_solver="iterative"``, since at these sizes the minimiser
 would otherwise factorise directly). Case (d) has no Newton step: its tangent is the zero matrix,
 whose "solve" means nothing, so (d) is reported for assembly only and c/d is undefined for
@@ -87,7 +87,7 @@ def case_jobs(case: common.Case, newton_step: bool = True) -> tuple[dict, dict]:
 
         def step() -> None:
             krylov["iterations"].append(solver.newton_direction(direction))
-            krylov["converged"] &= int(solver.snes.getKSP().getConvergedReason()) > 0
+            krylov["converged"] &= int(solver.krylov_solver.getConvergedReason()) > 0
 
         jobs["newton_step"] = step
     for job in jobs.values():

@@ -53,7 +53,7 @@ def measure(cells: int) -> dict:
     direction = solver.problem.create_vector()
     stage("forms_and_solver")
     krylov_iterations = solver.newton_direction(direction)
-    converged = int(solver.snes.getKSP().getConvergedReason()) > 0
+    converged = int(solver.krylov_solver.getConvergedReason()) > 0
     stage("newton_step")
     report = {
         "ranks": comm.size,

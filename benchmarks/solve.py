@@ -11,7 +11,7 @@ thickness-cells hexahedra, 6 tetrahedra each; the quick defaults give 4 335 dofs
 (ii) our Neo-Hookean + C2 kernels (exact tangent, as the UFL route has),
 
 each through :class:`~dolfinx_invertible.solvers.problem.EnergyProblem`,
-:class:`~dolfinx_invertible.solvers.newton.EnergyMinimizer` (default options) and
+:class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer` (default options) and
 :func:`~dolfinx_invertible.solvers.stepping.solve_load_steps`, with the same traction potential
 as a UFL form. Every form is compiled and assembled once before timing; the two routes
 alternate over the repeats and the medians are reported, with Newton and Krylov iterations,
