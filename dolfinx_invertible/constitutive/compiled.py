@@ -3,8 +3,8 @@
 With every function numba compiles, and keeps in its disk cache, a CPython wrapper (unboxing
 the arguments, boxing the result) and a C wrapper. A function that only other compiled code
 calls needs neither, nor machine code of its own (its callers link its LLVM IR in and generate
-code for the whole chain): :func:`compiled_only` leaves all three out (docs/performance.md has
-what each saves), and :func:`compiled_overload` does the same for the implementations of the
+code for the whole chain): :func:`compiled_only` leaves all three out (CHANGELOG.md has
+what each saved), and :func:`compiled_overload` does the same for the implementations of the
 package's numba overloads (the dispatch on model, extension and dimension). A compiled-only
 function called from Python would jump through a null entry point, so its dispatcher refuses
 the call with a ``TypeError`` instead. Functions that Python calls (the batch loops' entries,

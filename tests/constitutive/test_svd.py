@@ -269,6 +269,8 @@ def test_warm_start_needs_no_sweep(rng):
     assert np.all(sweeps == 0), np.bincount(sweeps)
     assert np.all(starts == svd_module.START_EIGENVECTORS)
     _, _, _, cold, _ = _svd_3_paths(F, False)
+    # From V = I the first sweep's rotations are O(1) for these F, and only a sweep whose
+    # tangents are all below 1e-8 ends the iteration: at least two sweeps.
     assert np.all(cold >= 2), np.bincount(cold)
     np.testing.assert_allclose(sigma, sig, rtol=1e-12)
 

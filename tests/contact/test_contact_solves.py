@@ -81,6 +81,8 @@ def test_block_resting_on_the_ground_carries_its_weight():
     problem, term, _ = resting_block(COMM, material())
     result = check_resting(problem, term, 3)
     assert result.newton_iterations > 2  # contact had to be found, not given
+    # The 5 × 5 vertices of the bottom face of the 4 × 4 × 2 block, each within d̂ of the floor
+    # (check_resting); the next layer of vertices is 0.25 higher.
     assert term.active_vertices() == 25
 
 
@@ -170,12 +172,18 @@ def test_dropped_cube_never_penetrates_at_any_newton_iterate():
     history, dynamics, term = drop(COMM, on_iterate=check)
     assert seen["penetrations"] == 0
     assert seen["smallest"] > 0.0
+    # 30 steps, each monitored at its start and after at least one Newton iteration (the cube
+    # moves: no step starts at its solution), give 60; the impact takes more. Regression pin:
+    # observed 109 on 2026-12-04 (a5eadce) with
+    # pytest tests/contact/test_contact_solves.py -k dropped_cube_never_penetrates
     assert seen["iterates"] > 60
     # It hit (t ≈ 0.14 s at 1.4 m/s: more than its weight) and was stopped.
     weight = DENSITY * 0.4**3 * GRAVITY
     assert history[:, 1].max() > 2.0 * weight
     assert np.all(history[:, 0] > 0.0)
     assert history[:, 0].min() < term.barrier.distance
+    # regression pin: observed 0 on 2026-12-04 (a5eadce) with
+    # pytest tests/contact/test_contact_solves.py -k dropped_cube_never_penetrates
     assert dynamics.controller.cuts == 0
 
 

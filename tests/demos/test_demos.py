@@ -82,7 +82,7 @@ def test_ported_tutorial_takes_no_more_newton_iterations_than_dolfinx(tmp_path):
     (plain, tip), (drop_in, drop_in_tip), (ours, our_tip) = (
         rows[name] for name in ("dolfinx", "drop-in", "minimiser")
     )
-    assert len(plain) == len(ours) == 9
+    assert len(plain) == len(ours) == 9  # the tutorial's nine load steps (LOADS)
     assert drop_in == plain and drop_in_tip == tip  # the same iterates as DOLFINx's own forms
     assert all(mine <= theirs for mine, theirs in zip(ours, plain)), (ours, plain)
     assert abs(our_tip - tip) <= 1e-6 * abs(tip)

@@ -39,10 +39,14 @@ def test_collapse_at_rest_takes_no_newton_iterations():
         on_step=lambda run: iterations.append(run.result.newton_iterations),
     )
     assert summary["completed"] and summary["outcome"] == "recovered"
+    # 40 = t_end / dt = 0.4 / 0.01 steps, none cut. The cuts: regression pin: observed 0 on
+    # 2026-12-04 (a5eadce) with pytest tests/solvers/test_robustness.py -k collapse_at_rest
     assert len(iterations) == 40 and summary["stepping"]["cuts"] == 0
     # Recovery takes a few steps; from then on the body is at rest and the state it starts
     # from already solves the step.
     assert max(iterations[:5]) > 0
+    # regression pin: observed iterations 3, 2, 2, 1, 1, then 0 from the sixth step on, on
+    # 2026-12-04 (a5eadce) with pytest tests/solvers/test_robustness.py -k collapse_at_rest
     assert iterations[-30:] == [0] * 30
 
 
@@ -147,7 +151,9 @@ def test_injected_linear_solver_failure_is_cut_and_reported_as_linear_solve():
     assert error.result.linear_reason_name in KSP_ITERATION_CAP
     assert "linear solve failed" in str(error)
     assert f"KSP {error.result.linear_reason_name}" in str(error)
-    # Retried: the first attempt and one per cut, each a smaller step.
+    # Retried: the first attempt and one per cut, each a smaller step. Every attempt fails (one
+    # Krylov iteration cannot converge) and an iterative linear solver offers no escalation
+    # (EnergyMinimizer.escalate), so the cuts run out: max_cuts + 1 = 4 failed attempts.
     assert dynamics.controller.cuts == 4
     assert dynamics.time == 0.0 and np.all(u.x.array == 0.0)
 
@@ -164,6 +170,8 @@ def test_injected_linear_solver_failure_reaches_the_scene_summary():
     assert not summary["completed"] and summary["outcome"] == "failed"
     assert summary["failed_stage"] == "linear solve"
     assert any(f"KSP {name}" in summary["reason"] for name in KSP_ITERATION_CAP)
+    # Every attempt fails and CG offers no escalation: max_cuts + 1 failed attempts, with the
+    # scenes' StepController default of max_cuts = 6.
     assert summary["stepping"]["cuts"] == 7  # the first attempt, then 6 cuts
 
 
@@ -223,6 +231,8 @@ def test_blended_tangent_restores_fast_convergence_out_of_a_collapse():
     blended = _collapse_step(True, 0.49)
     assert projected.converged and blended.converged
     assert projected.blended_iterations == 0 and blended.blended_iterations > 0
+    # regression pins: observed blended 16 and projected 86 iterations on 2026-12-04 (a5eadce)
+    # with pytest tests/solvers/test_robustness.py -k blended_tangent_restores
     assert blended.newton_iterations <= 20
     assert projected.newton_iterations >= 1.5 * blended.newton_iterations
     # The same solution: the blend changes the path, not the minimiser it converges to.
@@ -245,14 +255,20 @@ def test_a_step_whose_cuts_run_out_escalates_to_blended_tangents():
     """
     refused = _collapsed_cube_dynamics(0.1)
     refused.problem.escalate = lambda: False
+    # 7 = the first attempt and the default max_cuts = 6 cuts.
     with pytest.raises(SolverError, match="failed 7 times"):
         refused.step()
-    assert refused.controller.escalations == 0
+    assert refused.controller.escalations == 0  # refused above
 
     escalated = _collapsed_cube_dynamics(0.1)
     result = escalated.step()
     assert result.converged and result.blended_iterations > 0
+    # regression pin: observed 16 on 2026-12-04 (a5eadce) with
+    # pytest tests/solvers/test_robustness.py -k cuts_run_out_escalates
     assert result.newton_iterations <= 25
+    # The cuts run out as in the refused run, so at least one escalation; the mode stays, so
+    # there is nothing to escalate to a second time.
     assert escalated.controller.escalations == 1
+    # 0.1 / 2⁶: the six halvings of the cuts, then that size again with blended tangents.
     assert escalated.controller.statistics()["step_min"] == pytest.approx(0.1 / 64)
     assert escalated.problem.solver.blend_after == 0  # the mode stays for the later steps
