@@ -30,6 +30,7 @@ from collections.abc import Callable
 from petsc4py import PETSc
 
 from dolfinx_invertible.solvers.results import ksp_reason_name
+from dolfinx_invertible.solvers.truncated_cg import TruncatedCG
 
 __all__ = [
     "BLEND_WEIGHTS",
@@ -178,6 +179,8 @@ class NewtonDirections:
         self._assembled = assembled
         self._projected = ProjectedTangent()
         self._blended = BlendedTangent()
+        #: The truncated CG solving for the directions where the iterative path runs it.
+        self.truncated: TruncatedCG | None = None
         self.start_solve()
 
     @property
@@ -197,7 +200,10 @@ class NewtonDirections:
 
     # -- the tangent of an iteration --------------------------------------------------------
     def assemble(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
-        """SNES Jacobian callback: the exact tangent, or outside Newton's local phase projected."""
+        """SNES Jacobian callback: the exact tangent, or outside Newton's local phase projected.
+
+        A distinct ``P`` (the truncated CG's preconditioning matrix) gets the projected tangent.
+        """
         projected = self.tangent_switch is not None and not self._exact_next
         self.projected_now = projected
         self.kind = ProjectedTangent.kind if projected else self.tangent
@@ -205,10 +211,19 @@ class NewtonDirections:
         if projected:
             self.tangent_switch(True)
         try:
-            self.problem.J(snes, x, A, P)
+            self.problem.J(snes, x, A, A)
         finally:
             if projected:
                 self.tangent_switch(False)
+        if P is not None and P.handle != A.handle:
+            if projected:
+                A.copy(P, structure=_SAME_PATTERN)
+            else:
+                self.tangent_switch(True)
+                try:
+                    self.problem.J(snes, x, P, P)
+                finally:
+                    self.tangent_switch(False)
         self._assembled(A)
 
     def assemble_projected(self, x: PETSc.Vec) -> None:
@@ -236,6 +251,11 @@ class NewtonDirections:
         where the exact tangent was factorised with a known inertia, it was definite.
         """
         reason = ksp.getConvergedReason()
+        if self.truncated is not None and not self.projected_now:
+            if self.truncated.outcome == ProjectedTangent.kind:
+                # Negative curvature: the truncated CG solved with the projected tangent.
+                self.projected_now = True
+                self.kind = ProjectedTangent.kind
         if reason < 0:
             return False, f"the linear solve failed ({ksp_reason_name(reason)})"
         if not has_energy:

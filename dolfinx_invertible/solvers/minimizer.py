@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from petsc4py import PETSc
@@ -26,6 +26,7 @@ from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX, Minimizer
 from dolfinx_invertible.solvers.problem import EnergyProblem
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.step_limit import StepLimit
+from dolfinx_invertible.solvers.truncated_cg import truncated_cg
 
 __all__ = ["EnergyMinimizer"]
 
@@ -144,7 +145,13 @@ class EnergyMinimizer:
         self._residual = problem.create_vector()
         self._backup = problem.create_vector()
         self._matrix = problem.create_matrix()
-        self._matrix.setNearNullSpace(rigid_body_near_nullspace(problem.u.function_space))
+        near_nullspace = rigid_body_near_nullspace(problem.u.function_space)
+        self._matrix.setNearNullSpace(near_nullspace)
+        # The iterative path preconditions CG on the exact tangent with the projected one.
+        self._preconditioner = self._matrix
+        if self.linear_solver == "iterative" and tangent_switch is not None:
+            self._preconditioner = problem.create_matrix()
+            self._preconditioner.setNearNullSpace(near_nullspace)
         self.tolerances = ScaledTolerances(
             problem,
             displacement_tolerance=displacement_tolerance,
@@ -176,12 +183,13 @@ class EnergyMinimizer:
         self.snes = PETSc.SNES().create(problem.comm)
         self.snes.setOptionsPrefix(options_prefix)
         self.snes.setFunction(problem.F, self._residual)
-        self.snes.setJacobian(self.directions.assemble, self._matrix, self._matrix)
+        self.snes.setJacobian(self.directions.assemble, self._matrix, self._preconditioner)
         self.snes.setLineSearchPreCheck(self._precheck)
         self.snes.setConvergenceTest(self._converged)
         self.snes.setConvergenceHistory(reset=True)
         self.snes.setMonitor(self._monitor)
         chosen = self.options.configure(self.snes)
+        self._choose_krylov_method()
         self.line_search = "energy" if chosen == "basic" and problem.has_energy else chosen
 
     # -- public properties and observation ------------------------------------------------
@@ -213,9 +221,25 @@ class EnergyMinimizer:
         """
         return self._monitors.add(on_iteration, on_step_cap)
 
-    def options_override(self, options: dict[str, Any]) -> contextlib.AbstractContextManager:
+    @contextlib.contextmanager
+    def options_override(self, options: dict[str, Any]) -> Iterator[None]:
         """Use further PETSc ``options`` (without prefix) for the duration, e.g. a longer cap."""
-        return self.options.override(self.snes, options)
+        try:
+            with self.options.override(self.snes, options):
+                self._choose_krylov_method()
+                yield
+        finally:
+            self._choose_krylov_method()
+
+    def _choose_krylov_method(self) -> None:
+        # CG on the exact tangent with the projected one as preconditioning matrix stops at
+        # negative curvature (truncated CG); any other Krylov method the options ask for is run
+        # as PETSc has it.
+        ksp = self.snes.getKSP()
+        self.directions.truncated = None
+        if self._preconditioner is not self._matrix and ksp.getType() == PETSc.KSP.Type.CG:
+            self._ksp = ksp  # the context lives as long as this reference (truncated_cg)
+            self.directions.truncated = truncated_cg(ksp)
 
     def escalate(self) -> bool:
         """Blend the tangents from the first projected iteration on, for good.
@@ -340,8 +364,10 @@ class EnergyMinimizer:
         ksp = self.snes.getKSP()
         try:
             self.problem.F(self.snes, self._x, self._residual)
-            self.directions.assemble(self.snes, self._x, self._matrix, self._matrix)
-            self._solve_linear(ksp, direction)
+            self.directions.assemble(self.snes, self._x, self._matrix, self._preconditioner)
+            with self.options.in_effect():
+                ksp.setOperators(self._matrix, self._preconditioner)
+                ksp.solve(self._residual, direction)
         finally:
             self._restore(u_vector)
         return int(ksp.getIterationNumber())

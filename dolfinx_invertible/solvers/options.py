@@ -111,6 +111,11 @@ def linear_solver_options(
         # preconditioner stops being positive definite (CG: DIVERGED_INDEFINITE_PC). A bound of
         # 1.3 keeps it definite, for about 10 % more iterations on well-conditioned problems.
         options["mg_levels_ksp_chebyshev_esteig"] = "0,0.2,0,1.3"
+        # Rebuild the hierarchy with every new tangent. Reused, its prolongators' eigenvalue
+        # estimates (which bound the Chebyshev smoothers) belong to an earlier tangent, and on
+        # a body through inversion the preconditioner then stops being positive definite (CG:
+        # DIVERGED_INDEFINITE_PC at most Newton steps of the collapse at 16³ × 6 cells).
+        options["pc_gamg_reuse_interpolation"] = False
     return options
 
 

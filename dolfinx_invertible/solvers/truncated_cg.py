@@ -64,8 +64,7 @@ class TruncatedCG:
         return self._work
 
     def solve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """Solve with the exact operator, or with the preconditioning matrix past negative
-        curvature."""
+        """Solve with the operator, or past negative curvature with the preconditioning matrix."""
         operator, projected = ksp.getOperators()
         self.curvature_iteration = None
         reason, iterations = self._cg(ksp, operator, b, x, truncate=True, start=0)
@@ -125,7 +124,7 @@ class TruncatedCG:
                 return _REASONS.CONVERGED_RTOL, iteration
             p.aypx(rz_next / rz, z)
             rz = rz_next
-        return _REASONS.DIVERGED_ITS, iteration
+        return _REASONS.DIVERGED_MAX_IT, iteration
 
 
 # KSPs whose type is ``python``: PETSc must drop their Python contexts while the interpreter and
