@@ -72,3 +72,23 @@ def test_each_public_name_is_declared_once():
         exported = importlib.import_module(package)
         for name in sorted(set(exported.__all__) & set(di.__all__)):
             assert getattr(exported, name) is getattr(di, name), f"{package}.{name}"
+
+
+def test_scenes_import_no_private_names():
+    """The scenes are examples of the public API: no ``_compat``, no other underscored name."""
+    import ast
+    from pathlib import Path
+
+    import dolfinx_invertible.scenes
+
+    private = []
+    for path in sorted(Path(dolfinx_invertible.scenes.__file__).parent.glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("dolfinx_inv"):
+                names = [node.module, *(alias.name for alias in node.names)]
+                private += [
+                    f"{path.name}: {name}"
+                    for name in names
+                    if any(part.startswith("_") for part in name.split("."))
+                ]
+    assert not private

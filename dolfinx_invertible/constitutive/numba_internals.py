@@ -11,7 +11,7 @@ The package patches numba in four places (docs/design.md, docs/performance.md):
 - ``compiled_only``: functions only compiled code calls get neither Python nor C wrappers and
   keep LLVM IR instead of machine code (a dispatcher subclass, numba's compiler pipeline and a
   code library class whose ``_finalize_final_module`` and ``_optimize_final_module`` stop
-  early); this roughly halves a cold compile;
+  early), for a faster cold compile (docs/performance.md has the figures);
 - ``c_callable``: a C callable is built before it is compiled, so that its disk cache can be
   probed without compiling (``CFunc`` and its ``_sig``, ``_targetdescr`` and ``_cache``); the
   compile helpers need that probe.
