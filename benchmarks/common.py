@@ -80,7 +80,7 @@ def unit_cube_space(comm, cells: int, degree: int):
     from dolfinx_invertible import _compat
 
     mesh = dolfinx.mesh.create_unit_cube(comm, cells, cells, cells)
-    return _compat.vector_function_space(mesh, "Lagrange", degree)
+    return _compat.vector_function_space(mesh, degree)
 
 
 def material():

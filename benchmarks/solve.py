@@ -160,7 +160,7 @@ def run_inverted(cells: int, steps: int, repeats: int) -> dict:
 
     comm = MPI.COMM_WORLD
     mesh = dolfinx.mesh.create_unit_cube(comm, cells, cells, cells)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     mu, lam = lame(INVERTED_YOUNGS_MODULUS, INVERTED_POISSON_RATIO)
     material = Material(NeoHookean(mu=mu, lam=lam), C2(common.C2_EPS))
 
@@ -249,7 +249,7 @@ def run(cells: int, thickness_cells: int, steps: int, repeats: int) -> dict:
     comm = MPI.COMM_WORLD
     machine = common.machine()
     mesh = cook_mesh(comm, cells, thickness_cells)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     quadrature_degree = default_quadrature_degree(1, "tetrahedron")
     mu, lam = lame(YOUNGS_MODULUS, POISSON_RATIO)
     material = Material(NeoHookean(mu=mu, lam=lam), C2(common.C2_EPS))

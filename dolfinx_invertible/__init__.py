@@ -12,30 +12,17 @@ first use of one of its names, so the batch API never loads DOLFINx.
 import importlib
 import importlib.metadata
 
-from dolfinx_invertible.constitutive import (
-    ARAP,
-    C1,
-    C2,
-    IFE,
-    Corotated,
-    Extension,
-    FixedCorotated,
-    Material,
-    Model,
-    NeoHookean,
-    NoEnergyError,
-    StableNeoHookean,
-    StVK,
-    lame,
-    polar_svd,
-)
+# The batch API is what the constitutive package declares public (its __all__).
+from dolfinx_invertible import constitutive as _constitutive
+from dolfinx_invertible.constitutive import *  # noqa: F403
 
 try:
     __version__ = importlib.metadata.version("dolfinx_invertible")
 except importlib.metadata.PackageNotFoundError:  # a source tree on PYTHONPATH, not installed
     __version__ = "0+unknown"
 
-# name -> module that defines it; imported on first access.
+# The public names of the DOLFINx layer: name -> module that defines it; imported on first
+# access. With the batch API, the one list of the package's top-level names.
 _LAZY = {
     "HyperelasticForms": "dolfinx_invertible.fem.forms",
     "cell_diagnostics": "dolfinx_invertible.fem.diagnostics",
@@ -73,21 +60,4 @@ def __dir__() -> list[str]:
     return sorted(__all__)
 
 
-__all__ = [
-    "ARAP",
-    "C1",
-    "C2",
-    "IFE",
-    "Corotated",
-    "Extension",
-    "FixedCorotated",
-    "Material",
-    "Model",
-    "NeoHookean",
-    "NoEnergyError",
-    "StVK",
-    "StableNeoHookean",
-    "lame",
-    "polar_svd",
-    *_LAZY,
-]
+__all__ = [*_constitutive.__all__, *_LAZY]

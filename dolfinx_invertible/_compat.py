@@ -57,15 +57,15 @@ def _kernel_signature():
 KERNEL_SIGNATURE = _kernel_signature()
 
 
-def vector_function_space(mesh, family: str, degree: int):
+def vector_function_space(mesh, degree: int = 1, family: str = "Lagrange"):
     """Vector-valued space with one component per geometric dimension."""
     if DOLFINX_VERSION < (0, 7):
         return dolfinx.fem.VectorFunctionSpace(mesh, (family, degree))
     return dolfinx.fem.functionspace(mesh, (family, degree, (mesh.geometry.dim,)))
 
 
-def scalar_function_space(mesh, family: str, degree: int):
-    """Scalar space, e.g. ("DG", 0) for per-cell diagnostics."""
+def scalar_function_space(mesh, degree: int = 0, family: str = "DG"):
+    """Scalar space, by default ("DG", 0) for per-cell diagnostics."""
     if DOLFINX_VERSION < (0, 7):
         return dolfinx.fem.FunctionSpace(mesh, (family, degree))
     return dolfinx.fem.functionspace(mesh, (family, degree))

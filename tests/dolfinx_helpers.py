@@ -48,7 +48,7 @@ def unit_mesh(d):
 def affine_displacement(mesh, A, degree=1, scale=1.0):
     """u = scale·(A − I)x, exact in any Lagrange space."""
     d = mesh.geometry.dim
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", degree))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, degree))
     u.interpolate(lambda x: scale * (A - np.eye(d)) @ x[:d])
     return u
 

@@ -9,8 +9,10 @@ package's numba overloads (the dispatch on model, extension and dimension). A co
 function called from Python would jump through a null entry point, so its dispatcher refuses
 the call with a ``TypeError`` instead. Functions that Python calls (the batch loops' entries,
 the helpers the tests call one by one) are :func:`python_callable`, the C entry points
-:func:`c_callable`. All three save to numba's disk cache under a lock
-(``_LockedFunctionCache``).
+:func:`c_callable`. All three save to numba's disk cache under a lock. The numba internals
+these rest on are in :mod:`~dolfinx_invertible.constitutive.numba_internals`, each with a
+plain-numba fallback (the same numbers, a slower first compile) for a numba release that
+lacks them.
 
 A cold process can also hand an independent compilation to a helper process
 (:func:`compile_ahead`): numba compiles under one lock per process, so two compilations in one
@@ -22,17 +24,13 @@ compiles it itself if the helper failed.
 from __future__ import annotations
 
 import atexit
-import fcntl
-import itertools
 import logging
 import os
-import secrets
 import subprocess
 import sys
 from collections.abc import Callable
 
-import numba
-from numba.core.caching import FunctionCache
+from dolfinx_invertible.constitutive import numba_internals
 
 __all__ = [
     "HELPER_VARIABLE",
@@ -62,166 +60,6 @@ _RUNNING: set[subprocess.Popen] = set()
 _AHEAD: dict[tuple, subprocess.Popen | None] = {}
 
 
-def _distinct_function_numbers() -> None:
-    """Start this process's numbering of compiled functions at a random value.
-
-    numba names the machine code of a function by its qualified name, its argument types and a
-    counter that starts at 1 in every process, and the JIT binds a cached object's calls by name.
-    Two closures of one name (a function specialised per model, extension and dimension) compiled
-    in two processes could then carry the same name for different code, and a process loading
-    both from the disk cache would run the first one's code for both (the 2D and 3D SVD paths
-    would give wrong stresses, without an error). A random start among 2⁴⁸ keeps them apart.
-    """
-    from numba.core import bytecode
-
-    bytecode.FunctionIdentity._unique_ids = itertools.count(secrets.randbits(48) + 1)
-
-
-_distinct_function_numbers()
-
-
-def _probe():
-    return None
-
-
-# The class numba.njit makes in this numba version (its module moved between versions).
-_Dispatcher = type(numba.njit(_probe))
-
-
-class _CompiledOnlyDispatcher(_Dispatcher):
-    """A dispatcher without the Python entry point: other compiled functions call it natively."""
-
-    def __call__(self, *args, **kwargs):
-        function = self.py_func
-        raise TypeError(
-            f"{function.__module__}.{function.__qualname__} is compiled without a Python entry "
-            "point and can only be called from compiled code"
-        )
-
-
-_LINK_ONLY_CLASSES: dict[type, type] = {}
-
-
-class _LinkOnlyCodegen:
-    """The codegen seen through a link-only library: no environment to bind in the JIT."""
-
-    def __init__(self, codegen):
-        self._codegen = codegen
-
-    def __getattr__(self, name: str):
-        return getattr(self._codegen, name)
-
-    def set_env(self, env_name, env) -> None:
-        # The environment global would be bound in this library's machine code, which is never
-        # generated; the callers' code carries its own copy.
-        return None
-
-
-def _link_only_library(codegen, name: str, optimise: bool = True):
-    """Return a library of ``codegen``'s class that keeps LLVM IR for callers, no machine code.
-
-    numba finalises every function's library on its own: it links the callees' IR in, optimises
-    the result and generates its machine code. A compiled-only function's machine code is never
-    run (its callers link its IR and optimise and generate code for the whole chain again), so
-    this library stops after the optimisation. Its disk cache entry holds that IR; a process that
-    loads it generates the machine code then, as numba does for IR entries. With ``optimise``
-    false it also leaves out the optimisation of the linked module (numba's per-function passes
-    still run): for a function that only forwards to a callee, whose callers optimise the whole
-    chain again, it would optimise the callee's already optimised IR once more for nothing.
-    """
-    base = type(codegen.create_library("probe"))
-    if base not in _LINK_ONLY_CLASSES:
-
-        def _finalize_final_module(self):
-            self._finalize_dynamic_globals()
-            self._verify_declare_only_symbols()
-            self._finalized = True
-
-        def serialize_using_object_code(self):
-            return self.serialize_using_bitcode()
-
-        def _optimize_final_module(self):
-            if self._optimise:
-                base._optimize_final_module(self)
-
-        _LINK_ONLY_CLASSES[base] = type(
-            "LinkOnlyCodeLibrary",
-            (base,),
-            {
-                "_finalize_final_module": _finalize_final_module,
-                "_optimize_final_module": _optimize_final_module,
-                "serialize_using_object_code": serialize_using_object_code,
-                "codegen": property(lambda self: _LinkOnlyCodegen(self._codegen)),
-            },
-        )
-    library = _LINK_ONLY_CLASSES[base](codegen, name)
-    library._optimise = optimise
-    library.enable_object_caching()
-    return library
-
-
-def _compiled_only_pipeline_class(optimise: bool = True):
-    """Numba's nopython pipeline with the link-only library in place before native lowering."""
-    from numba.core.compiler import CompilerBase, DefaultPassBuilder
-    from numba.core.compiler_machinery import LoweringPass, PassManager, register_pass
-    from numba.core.typed_passes import NativeLowering
-
-    @register_pass(mutates_CFG=False, analysis_only=True)
-    class LinkOnlyLibrary(LoweringPass):
-        _name = "dolfinx_invertible_link_only_library"
-
-        def __init__(self):
-            LoweringPass.__init__(self)
-
-        def run_pass(self, state):
-            if state.library is None:
-                codegen = state.targetctx.codegen()
-                state.library = _link_only_library(codegen, state.func_id.func_qualname, optimise)
-            return False
-
-    class CompiledOnlyCompiler(CompilerBase):
-        def define_pipelines(self):
-            default = DefaultPassBuilder.define_nopython_pipeline(self.state)
-            pipeline = PassManager("compiled_only")
-            for pass_class, description in default.passes:
-                if pass_class is NativeLowering:
-                    pipeline.add_pass(LinkOnlyLibrary, "keep LLVM IR, no machine code")
-                pipeline.add_pass(pass_class, description)
-            pipeline.finalize()
-            return [pipeline]
-
-    return CompiledOnlyCompiler
-
-
-_PIPELINE_CLASS = _compiled_only_pipeline_class()
-# For functions that only forward to a callee (compiled_overload's implementations).
-_FORWARDING_PIPELINE_CLASS = _compiled_only_pipeline_class(optimise=False)
-
-
-class _LockedFunctionCache(FunctionCache):
-    """numba's disk cache of a function, its entries saved one process at a time.
-
-    A save reads the function's index, picks a data file and rewrites both. Two processes saving
-    different specialisations of one function at once (two test workers, or a process and its
-    compile helper) could both pick the same data file, and the index could end up naming the
-    other one's code. An exclusive lock on a file in the cache directory orders the saves;
-    loads need none, since a data file then only ever holds the entry its index names.
-    """
-
-    def _save_overload(self, sig, data):
-        try:
-            os.makedirs(self._cache_path, exist_ok=True)
-            lock = open(os.path.join(self._cache_path, "dolfinx_invertible.lock"), "a")  # noqa: SIM115
-        except OSError:  # a read-only cache: numba decides what saving means there
-            return super()._save_overload(sig, data)
-        with lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)
-            try:
-                return super()._save_overload(sig, data)
-            finally:
-                fcntl.flock(lock, fcntl.LOCK_UN)
-
-
 def compiled_only(function: Callable | None = None, *, forceinline: bool = False):
     """``numba.njit(cache=True)`` without the Python and C wrappers, for compiled callers only.
 
@@ -234,14 +72,7 @@ def compiled_only(function: Callable | None = None, *, forceinline: bool = False
     """
 
     def decorate(function: Callable):
-        options = {"nopython": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
-        if forceinline:
-            options["forceinline"] = True
-        dispatcher = _CompiledOnlyDispatcher(
-            py_func=function, locals={}, targetoptions=options, pipeline_class=_PIPELINE_CLASS
-        )
-        dispatcher._cache = _LockedFunctionCache(function)
-        return dispatcher
+        return numba_internals.compiled_only_dispatcher(function, forceinline=forceinline)
 
     return decorate if function is None else decorate(function)
 
@@ -259,54 +90,34 @@ def compiled_overload(function: Callable, **options):
     """
     from numba.extending import overload
 
-    jit_options = {
-        "no_cpython_wrapper": True,
-        "no_cfunc_wrapper": True,
-        "pipeline_class": _FORWARDING_PIPELINE_CLASS,
-    }
-    return overload(function, jit_options=jit_options, **options)
+    return overload(function, jit_options=numba_internals.overload_jit_options(), **options)
 
 
 def python_callable(function: Callable):
     """``numba.njit(cache=True)(function)``, its disk cache saved under the lock."""
-    dispatcher = numba.njit(function)
-    dispatcher._cache = _LockedFunctionCache(function)
-    return dispatcher
-
-
-def _c_callback(function: Callable, signature):
-    from numba.core import sigutils
-    from numba.core.ccallback import CFunc
-
-    # As numba.cfunc(signature, cache=True) builds it, with the locked cache.
-    callback = CFunc(function, sigutils.normalize_signature(signature), {}, {"nopython": True})
-    callback._cache = _LockedFunctionCache(function)
-    return callback
+    return numba_internals.jit_cached(function)
 
 
 def c_callable(function: Callable, signature) -> object:
     """``numba.cfunc(signature, cache=True)(function)``, its disk cache saved under the lock."""
-    callback = _c_callback(function, signature)
-    callback.compile()
-    return callback
+    return numba_internals.c_callable(function, signature)
 
 
 def cached_c_callable(function: Callable, signature) -> object | None:
     """:func:`c_callable` if numba's disk cache holds it, else ``None`` without compiling."""
-    callback = _c_callback(function, signature)
-    target = callback._targetdescr.target_context
-    if callback._cache.load_overload(callback._sig, target) is None:
-        return None
-    callback.compile()
-    return callback
+    return numba_internals.cached_c_callable(function, signature)
 
 
 def helpers_allowed() -> bool:
     """Whether a compilation may go to a helper process.
 
-    Not when :data:`HELPER_VARIABLE` is ``0`` or this process may run on one core only.
+    Not when :data:`HELPER_VARIABLE` is ``0``, this process may run on one core only, or
+    numba's disk cache cannot be probed without compiling (no ``c_callable`` patch in
+    :mod:`~dolfinx_invertible.constitutive.numba_internals`).
     """
     if os.environ.get(HELPER_VARIABLE, "1").strip() == "0":
+        return False
+    if not numba_internals.ACTIVE["c_callable"]:
         return False
     try:
         cores = len(os.sched_getaffinity(0))

@@ -76,7 +76,7 @@ class BoundaryVertices:
         self.comm = mesh.comm
         self.dimension = dimension
 
-        vertex_space = _compat.scalar_function_space(mesh, "Lagrange", 1)
+        vertex_space = _compat.scalar_function_space(mesh, 1, "Lagrange")
         weight_form = dolfinx.fem.form(ufl.TestFunction(vertex_space) * ufl.ds(domain=mesh))
         vector = _compat.create_vector(weight_form)
         with vector.localForm() as local:

@@ -22,9 +22,9 @@ def vector_function_space(mesh, degree: int = 1, family: str = "Lagrange"):
     family
         Element family, ``"Lagrange"`` by default.
     """
-    return _compat.vector_function_space(mesh, family, degree)
+    return _compat.vector_function_space(mesh, degree, family)
 
 
 def scalar_function_space(mesh, degree: int = 0, family: str = "DG"):
     """Return a scalar space, by default piecewise constants ("DG", 0) for per-cell fields."""
-    return _compat.scalar_function_space(mesh, family, degree)
+    return _compat.scalar_function_space(mesh, degree, family)

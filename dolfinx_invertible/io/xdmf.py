@@ -153,11 +153,11 @@ class ResultWriter:
         # into the Lagrange space of the coordinate element whatever the degree of u.
         self._displacement = dolfinx.fem.Function(
             _compat.vector_function_space(
-                mesh, "Lagrange", _compat.coordinate_element_degree(mesh)
+                mesh, _compat.coordinate_element_degree(mesh), "Lagrange"
             ),
             name=DISPLACEMENT_NAME,
         )
-        self._cell_space = _compat.scalar_function_space(mesh, "DG", 0)
+        self._cell_space = _compat.scalar_function_space(mesh, 0, "DG")
         self._owned_cell_dofs = _compat.cell_dofs(self._cell_space)[: self._num_owned_cells, 0]
         self._cell_fields: dict[str, dolfinx.fem.Function] = {}
 

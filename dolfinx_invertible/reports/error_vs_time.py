@@ -477,8 +477,8 @@ def _scene_class(case: Case):
     """Return the scene class of ``case``: its start, linear solver and sampling."""
     from time import perf_counter
 
+    from dolfinx_invertible.fem import PointValues
     from dolfinx_invertible.scenes import get_scene
-    from dolfinx_invertible.scenes.sampling import PointValues
 
     base = get_scene(_SCENES[case.study])
     points = _sample_points(case.study)

@@ -15,7 +15,7 @@ import dolfinx
 import numpy as np
 import ufl
 
-from dolfinx_invertible.scenes.sampling import PointValues
+from dolfinx_invertible.fem import PointValues
 from dolfinx_invertible.scenes.scene import Scene
 
 __all__ = ["REFERENCE_TIP_DISPLACEMENT", "CookMembrane", "cook_mesh"]

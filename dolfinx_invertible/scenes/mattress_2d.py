@@ -12,7 +12,7 @@ from __future__ import annotations
 import dolfinx
 import numpy as np
 
-from dolfinx_invertible.scenes.sampling import CellSingularValues
+from dolfinx_invertible.fem import CellSingularValues
 from dolfinx_invertible.scenes.scene import Scene
 
 __all__ = ["Mattress2D"]

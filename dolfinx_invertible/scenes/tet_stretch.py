@@ -14,9 +14,8 @@ from __future__ import annotations
 import dolfinx
 import numpy as np
 
-from dolfinx_invertible import _compat
+from dolfinx_invertible.fem import CellSingularValues, mesh_from_cells
 from dolfinx_invertible.scenes.loading import smooth_ramp
-from dolfinx_invertible.scenes.sampling import CellSingularValues
 from dolfinx_invertible.scenes.scene import Scene
 
 __all__ = ["TetStretch"]
@@ -43,7 +42,7 @@ class TetStretch(Scene):
 
     def create_mesh(self):
         """Return the single tetrahedron."""
-        return _compat.create_mesh_from_cells(
+        return mesh_from_cells(
             self.comm, self.parameters.size * VERTICES, np.array([[0, 1, 2, 3]]), "tetrahedron"
         )
 

@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dolfinx_invertible import _compat
-from dolfinx_invertible.scenes.sampling import CellSingularValues
+from dolfinx_invertible.fem import CellSingularValues, mesh_from_cells
 from dolfinx_invertible.scenes.scene import Scene
 
 __all__ = ["Triangles2D"]
@@ -48,7 +47,7 @@ class Triangles2D(Scene):
         size = self.parameters.size
         points = np.concatenate([size * (_TRIANGLE + [SPACING * k, 0.0]) for k in range(3)])
         cells = np.arange(9).reshape(3, 3)
-        return _compat.create_mesh_from_cells(self.comm, points, cells, "triangle")
+        return mesh_from_cells(self.comm, points, cells, "triangle")
 
     def initial_displacement(self):
         """Return u₀ = (F_k − I)(x − centroid_k) on triangle k."""

@@ -354,7 +354,7 @@ def test_stand_in_that_cannot_compile_gives_nan(monkeypatch, caplog):
 def test_forms_assemble_before_the_helper_is_done(monkeypatch):
     """The kernels call the SVD path through the stand-in, then through the path itself."""
     mesh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 3, 2)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     u.interpolate(lambda x: np.stack([-1.6 * x[0] * x[1], 0.1 * x[0]]))  # inverts some cells
     material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())
@@ -380,7 +380,7 @@ def test_forms_dropped_before_the_stand_in_binds_are_written_safely(monkeypatch)
     gone: DOLFINx's value array does not keep its Constant alive, so the binding must, until then.
     """
     mesh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 2, 2)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     u.interpolate(lambda x: np.stack([-1.6 * x[0] * x[1], 0.1 * x[0]]))  # inverts some cells
     material = di.Material(di.NeoHookean(mu=1.0, lam=2.0), di.C2())

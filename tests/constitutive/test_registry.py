@@ -1,7 +1,8 @@
-"""The registries are the one source of ids: every registered model and extension is dispatched
-to its own module, and the batch API needs no DOLFINx."""
+"""Each model and extension declares its id and the registries check them; every registered model
+and extension is dispatched to its own module, and the batch API needs no DOLFINx."""
 
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -13,9 +14,11 @@ from constitutive_helpers import LAM, MU, compiled_caller
 import dolfinx_invertible as di
 from dolfinx_invertible.constitutive import workspace as ws
 from dolfinx_invertible.constitutive.extensions import EXTENSIONS, c1, c2, ife
+from dolfinx_invertible.constitutive.extensions import registry as extension_registry
 from dolfinx_invertible.constitutive.models import MODELS
 from dolfinx_invertible.constitutive.models import registry as model_registry
 from dolfinx_invertible.constitutive.principal import principal_derivatives
+from dolfinx_invertible.constitutive.registry_ids import ordered_by_id
 
 
 def test_ids_are_positions():
@@ -25,6 +28,50 @@ def test_ids_are_positions():
         range(1, len(EXTENSIONS))
     )
     assert len({model.__module__ for model in MODELS}) == len(MODELS)
+
+
+def test_each_class_declares_its_id():
+    """Compiled kernels and numba's disk cache key on these numbers: they never change."""
+    declared = {model.__name__: vars(model)["model_id"] for model in MODELS}
+    assert declared == {"NeoHookean": 0, "Corotated": 1, "FixedCorotated": 2,
+                        "StableNeoHookean": 3, "ARAP": 4, "StVK": 5}  # fmt: skip
+    declared = {extension.__name__: vars(extension)["extension_id"] for extension in EXTENSIONS[1:]}
+    assert declared == {"C1": 1, "C2": 2, "IFE": 3}
+    assert extension_registry.NONE_ID == 0
+
+
+def _classes(**ids):
+    """Classes named after the keywords, each declaring ``model_id`` (None: declaring none)."""
+    return tuple(
+        type(name, (di.Model,), {} if value is None else {"model_id": value})
+        for name, value in ids.items()
+    )
+
+
+def test_registry_orders_by_the_declared_ids():
+    ordered = ordered_by_id(_classes(B=1, C=2, A=0), "model_id", first=0)
+    assert [cls.__name__ for cls in ordered] == ["A", "B", "C"]
+
+
+@pytest.mark.parametrize(
+    "ids, message",
+    [
+        ({"A": 0, "B": 0}, "A and B both declare model_id = 0"),
+        ({"A": 0, "B": 2}, "model_ids must be 0..1 without a gap; declared: A = 0, B = 2"),
+        ({"A": 1, "B": 2}, "model_ids must be 0..1 without a gap"),
+        ({"A": 0, "B": None}, "B must declare an integer model_id"),
+        ({"A": 0, "B": True}, "B must declare an integer model_id"),
+    ],
+)
+def test_registry_rejects_repeated_missing_or_gapped_ids(ids, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        ordered_by_id(_classes(**ids), "model_id", first=0)
+
+
+def test_an_inherited_id_is_no_declaration():
+    subclass = type("Stiffer", (di.NeoHookean,), {})
+    with pytest.raises(ValueError, match="Stiffer must declare an integer model_id"):
+        ordered_by_id((di.NeoHookean, subclass), "model_id", first=0)
 
 
 def _compiled_tables(model_id):

@@ -298,7 +298,7 @@ def test_bad_input_is_refused():
         ContactTerm(displacement(mesh), floor, MATERIAL).set_time(math.nan)
     with pytest.raises(ValueError, match="fraction"):
         ContactTerm(displacement(mesh), floor, MATERIAL).step_limit(fraction=1.5)
-    scalar = dolfinx.fem.Function(_compat.scalar_function_space(mesh, "Lagrange", 1))
+    scalar = dolfinx.fem.Function(_compat.scalar_function_space(mesh, 1, "Lagrange"))
     with pytest.raises(ValueError, match="components"):
         ContactTerm(scalar, floor, MATERIAL)
 

@@ -94,7 +94,7 @@ def assembled_values(forms: HyperelasticForms, v) -> np.ndarray:
 @pytest.mark.parametrize("dimension", [2, 3])
 def test_forms_see_the_displacement(dimension):
     mesh = unit_mesh(dimension)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     v = dolfinx.fem.Function(space)
     v.interpolate(lambda x: np.vstack([np.cos(3.0 * x[0] + k * x[1]) for k in range(dimension)]))

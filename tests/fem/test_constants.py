@@ -28,7 +28,7 @@ MU, LAM = lame(10.0, 0.3)
 
 def _state():
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     # Compressed to J ≈ 0.81 in part of the cube: the C2 extension is active there.
     u.interpolate(lambda x: np.stack([-0.3 * x[0] ** 2, 0.02 * x[2], 0.01 * x[1]]))
     u.x.scatter_forward()

@@ -66,7 +66,7 @@ def test_summary_counts_all_ranks():
     mesh = unit_mesh(2)
     material = MATERIALS["C2"]()
     # Inverted only left of x = 0.5: u folds the left half over.
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     u.interpolate(lambda x: np.vstack([np.where(x[0] < 0.5, -2.0 * x[0], -1.0), 0.0 * x[1]]))
     diagnostics = cell_diagnostics(u, material)

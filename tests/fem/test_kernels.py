@@ -40,7 +40,7 @@ def make_mesh(cell: str):
 
 def perturbed_displacement(mesh, degree: int, amplitude: float, seed: int = 0):
     """A smooth, uninverted displacement (identical on any number of ranks)."""
-    V = _compat.vector_function_space(mesh, "Lagrange", degree)
+    V = _compat.vector_function_space(mesh, degree)
     u = dolfinx.fem.Function(V)
     d = mesh.geometry.dim
     rng = np.random.default_rng(seed)
@@ -139,7 +139,7 @@ def test_p1_hexahedron_tangent_is_not_singular():
     mesh = dolfinx.mesh.create_unit_cube(
         MPI.COMM_SELF, 2, 2, 2, cell_type=dolfinx.mesh.CellType.hexahedron
     )
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     forms = HyperelasticForms(u, Material(NeoHookean(mu=MU, lam=LAM)))
     matrix = dolfinx.fem.petsc.assemble_matrix(forms.jacobian)
@@ -157,7 +157,7 @@ def test_p1_hexahedron_tangent_is_not_singular():
 def test_overflowing_state_writes_no_nan():
     """u = 1e200 x: the energy is +inf, the residual and tangent finite (zero contributions)."""
     mesh = make_mesh("tetrahedron")
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     u.interpolate(lambda x: 1e200 * x)
     forms = HyperelasticForms(u, Material(NeoHookean(mu=MU, lam=LAM), C2()))
@@ -194,7 +194,7 @@ def test_patch_test_affine_map(cell, determinant_sign):
     A = np.eye(d) + 0.2 * rng.normal(size=(d, d))
     if np.sign(np.linalg.det(A)) != determinant_sign:
         A[:, 0] *= -1.0
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     u.interpolate(lambda x: (A - np.eye(d)) @ x[:d])
     u.x.scatter_forward()
@@ -218,10 +218,10 @@ def test_patch_test_affine_map(cell, determinant_sign):
 
 def test_bad_spaces_are_rejected():
     mesh = make_mesh("triangle")
-    scalar = dolfinx.fem.Function(_compat.scalar_function_space(mesh, "Lagrange", 1))
+    scalar = dolfinx.fem.Function(_compat.scalar_function_space(mesh, 1, "Lagrange"))
     with pytest.raises(ValueError, match="components"):
         HyperelasticForms(scalar, Material(NeoHookean(mu=MU, lam=LAM)))
-    cubic = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 3))
+    cubic = dolfinx.fem.Function(_compat.vector_function_space(mesh, 3))
     with pytest.raises(ValueError, match="degree 3 is not supported"):
         HyperelasticForms(cubic, Material(NeoHookean(mu=MU, lam=LAM)))
     with pytest.raises(TypeError, match="Material"):

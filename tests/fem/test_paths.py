@@ -31,7 +31,7 @@ pytestmark = pytest.mark.mpi
 
 def stretched(stretch: float):
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     u.interpolate(lambda x: (stretch - 1.0) * x)
     u.x.scatter_forward()

@@ -96,7 +96,7 @@ def series(tmp_path_factory):
                 # P2: the writer interpolates it to the vertices.
                 u = affine_displacement(mesh, AFFINE, degree=2)
             else:
-                u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+                u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
                 u.interpolate(lambda x, k=kind, p=parameters: deformation_map(k, p, x) - x)
             diagnostics = cell_diagnostics(u, material)
             writer.write(t, u, diagnostics)
@@ -149,7 +149,7 @@ def test_displacement_ranges(inspected):
 
 def test_cell_ranges_match_the_run(inspected, series):
     _, written, mesh = series
-    vertices = _compat.scalar_function_space(mesh, "Lagrange", 1)
+    vertices = _compat.scalar_function_space(mesh, 1, "Lagrange")
     coordinates = vertices.tabulate_dof_coordinates()
     midpoints_x = coordinates[_compat.cell_dofs(vertices)].mean(axis=1)[:, 0]
     expected_inverted = []

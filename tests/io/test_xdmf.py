@@ -34,7 +34,7 @@ def owned_midpoints(mesh):
     """x coordinate of the midpoint of every owned cell, in local cell order."""
     d = mesh.topology.dim
     num_owned = mesh.topology.index_map(d).size_local
-    vertices = _compat.scalar_function_space(mesh, "Lagrange", 1)
+    vertices = _compat.scalar_function_space(mesh, 1, "Lagrange")
     coordinates = vertices.tabulate_dof_coordinates()
     return coordinates[_compat.cell_dofs(vertices)[:num_owned]].mean(axis=1)[:, 0]
 

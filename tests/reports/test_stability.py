@@ -133,7 +133,7 @@ def test_overlap_count_finds_a_body_folded_through_itself():
     from dolfinx_invertible import _compat
 
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 3, 3, 3)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: np.stack([0.3 * x[0] * x[1], 0.1 * x[2], np.zeros_like(x[0])]))
     assert stability.overlapping_cells(u) == 0
     # A rigid rotation moves every cell and overlaps nothing.

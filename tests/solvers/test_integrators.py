@@ -34,7 +34,7 @@ def _material(mu: float = MU, lam: float = LAM):
 
 def _space(cells: int, comm=MPI.COMM_WORLD):
     mesh = dolfinx.mesh.create_unit_cube(comm, cells, cells, cells)
-    return _compat.vector_function_space(mesh, "Lagrange", 1)
+    return _compat.vector_function_space(mesh, 1)
 
 
 def _uniform(space, vector) -> dolfinx.fem.Function:

@@ -37,7 +37,7 @@ def beam(comm=MPI.COMM_WORLD, degree: int = 1):
     mesh = dolfinx.mesh.create_box(
         comm, [np.zeros(3), np.array([1.0, 0.3, 0.3])], [6, 2, 2], dolfinx.mesh.CellType.tetrahedron
     )
-    V = _compat.vector_function_space(mesh, "Lagrange", degree)
+    V = _compat.vector_function_space(mesh, degree)
     u = dolfinx.fem.Function(V)
     clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
     bc = dolfinx.fem.dirichletbc(np.zeros(3), dolfinx.fem.locate_dofs_topological(V, 2, clamped), V)
@@ -143,7 +143,7 @@ def test_inverted_scene_same_solution_on_any_number_of_ranks():
 @pytest.mark.mpi
 def test_inversion_free_step_on_affine_motion():
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     direction = dolfinx.fem.Function(V)
     direction.interpolate(lambda x: 2.0 * x)  # δF = 2 I (sign −1 below: shrinking)
@@ -181,7 +181,7 @@ def test_plain_neo_hookean_with_inversion_free_steps_stays_uninverted():
 def test_free_fall_matches_discrete_backward_euler():
     """No supports, gravity only: every node follows uₙ = h² g n(n+1)/2 exactly."""
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     g = np.array([0.0, 0.0, -9.81])
     for lumped in (False, True):
@@ -203,7 +203,7 @@ def test_free_fall_matches_discrete_backward_euler():
 def test_collapsed_cube_recovers(extension):
     """Paper Fig. 5 (left), small: every vertex pulled to the centre (F = 0.05 I)."""
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     material = Material(NeoHookean(mu=MU, lam=LAM), extension)
@@ -241,7 +241,7 @@ def test_degenerate_reference_cells_are_named():
     # Squash the top row of vertices onto the middle row: the top cells lose all their area.
     x = mesh.geometry.x
     x[np.isclose(x[:, 1], 1.0), 1] = 0.5
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     with pytest.raises(ValueError, match=r"4 degenerate \(zero-volume\) cells"):
         HyperelasticProblem(u, Material(NeoHookean(mu=MU, lam=LAM), C2()))
 
@@ -249,7 +249,7 @@ def test_degenerate_reference_cells_are_named():
 @pytest.mark.mpi
 def test_failed_time_step_raises_with_time_and_reason():
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.9 * (x - 0.5))
     dynamics = ImplicitDynamics(
         u, Material(NeoHookean(mu=MU, lam=LAM), C2()), density=1.0, dt=0.1, max_cuts=1,

@@ -57,7 +57,7 @@ def _bar(comm=MPI.COMM_SELF):
         [4, 1, 1],
         dolfinx.mesh.CellType.tetrahedron,
     )
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
     dofs = dolfinx.fem.locate_dofs_topological(space, 2, clamped)
     end = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 1.0))
@@ -87,7 +87,7 @@ def _dynamic_iterations(scale: float) -> list[int]:
 def _collapse_iterations(scale: float) -> list[int]:
     """Newton iterations per step of a small cube released from F = 0.05 I."""
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(scale * 1.0e3, 0.45)
     dynamics = ImplicitDynamics(
@@ -183,7 +183,7 @@ def test_krylov_solver_chosen_in_petsc_options_replaces_the_direct_default(pc_ty
     ``petsc_options`` replace it, and a PC without a factor must not be asked for one.
     """
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(1.0e3, 0.45)
     dynamics = ImplicitDynamics(
@@ -203,7 +203,7 @@ def test_krylov_solver_chosen_in_petsc_options_replaces_the_direct_default(pc_ty
 def _collapse_step(blend: bool, nu: float):
     """One backward Euler step out of the point collapse (F = 0.05 I) of a unit cube."""
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(1.0e3, nu)
@@ -241,7 +241,7 @@ def test_blended_tangent_restores_fast_convergence_out_of_a_collapse():
 
 def _collapsed_cube_dynamics(dt: float) -> ImplicitDynamics:
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(1.0e3, 0.49)
     return ImplicitDynamics(u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=dt)

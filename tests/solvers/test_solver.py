@@ -68,7 +68,7 @@ def cantilever(
     """
     corners = [np.zeros(3), np.array([LENGTH, 1.0, 1.0])]
     mesh = dolfinx.mesh.create_box(comm, corners, [6, 2, 2], dolfinx.mesh.CellType.tetrahedron)
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     test, trial = ufl.TestFunction(space), ufl.TrialFunction(space)
     pseudo_time = dolfinx.fem.Constant(mesh, 0.0)
@@ -246,7 +246,7 @@ def test_split_forms_match_single_form():
 
 def test_interior_facet_jacobian_beyond_first_pattern_is_allocated_and_reported():
     mesh = dolfinx.mesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.ones(3)], [3, 2, 2])
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(space)
     test, trial = ufl.TestFunction(space), ufl.TrialFunction(space)
     mass = ufl.inner(trial, test) * ufl.dx
@@ -416,7 +416,7 @@ def test_rigid_body_modes_span_the_kernel_of_elasticity(dimension):
         mesh = dolfinx.mesh.create_rectangle(comm, corners, [4, 2])
     else:
         mesh = dolfinx.mesh.create_box(comm, corners, [4, 2, 2])
-    space = _compat.vector_function_space(mesh, "Lagrange", 1)
+    space = _compat.vector_function_space(mesh, 1)
     u, v = ufl.TrialFunction(space), ufl.TestFunction(space)
     strain = ufl.sym(ufl.grad(u))
     form = dolfinx.fem.form(

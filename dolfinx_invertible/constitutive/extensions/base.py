@@ -13,8 +13,8 @@ __all__ = ["Extension"]
 class Extension:
     """Base of the invertible extensions: a threshold ``eps`` in (0, 1).
 
-    :mod:`~dolfinx_invertible.constitutive.extensions.registry` gives each extension its
-    ``extension_id``, the branch the compiled kernels take. ``eps`` may be a scalar
+    Subclasses set ``extension_id``, the branch the compiled kernels take (checked by
+    :mod:`~dolfinx_invertible.constitutive.extensions.registry`). ``eps`` may be a scalar
     ``dolfinx.fem.Constant``, read whenever the parameters are needed.
     """
 

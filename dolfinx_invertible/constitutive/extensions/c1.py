@@ -182,6 +182,8 @@ class C1(Extension):
         model it extends (the paper's choice).
     """
 
+    extension_id = 1
+
     def __init__(self, eps=0.4, k=None):
         super().__init__(eps)
         self._k = None if k is None else Parameter("k", k, _check_stiffness)

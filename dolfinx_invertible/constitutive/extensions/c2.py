@@ -194,5 +194,7 @@ class C2(Extension):
         Threshold on J = det F in (0, 1).
     """
 
+    extension_id = 2
+
     def __init__(self, eps: float = 0.9):
         super().__init__(eps)

@@ -59,6 +59,7 @@ derivatives = ife_derivatives
 class IFE(Extension):
     """Stress-based invertible-FE extension past J = ε (default 0.9); has no energy."""
 
+    extension_id = 3
     has_energy = False
 
     def __init__(self, eps: float = 0.9):

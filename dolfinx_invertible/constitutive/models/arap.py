@@ -21,6 +21,7 @@ def constants(mu, lam):
 class ARAP(Model):
     """As-rigid-as-possible energy; only a shear modulus μ (λ = 0)."""
 
+    model_id = 4
     name = "arap"
 
     def __init__(self, mu: float):

@@ -22,9 +22,9 @@ def _check_lam(name: str, lam: float) -> float:
 class Model:
     """An isotropic hyperelastic energy Ψ̂(σ) with Lamé parameters μ and λ.
 
-    Subclasses set ``name`` and ``requires_positive_volume`` (the energy is only defined for
-    J > 0); :mod:`~dolfinx_invertible.constitutive.models.registry` gives each its ``model_id``,
-    the branch the compiled kernels take.
+    Subclasses set ``model_id`` (the branch the compiled kernels take; checked by
+    :mod:`~dolfinx_invertible.constitutive.models.registry`), ``name`` and
+    ``requires_positive_volume`` (the energy is only defined for J > 0).
 
     ``mu`` and ``lam`` are real numbers or scalar ``dolfinx.fem.Constant`` objects; a Constant is
     read whenever the parameters are needed (each batch evaluation, each assembly), so setting

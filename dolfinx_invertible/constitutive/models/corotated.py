@@ -42,4 +42,5 @@ def slopes(x, y, mu, lam):
 class Corotated(Model):
     """Corotated linear elasticity made hyperelastic (Chao et al. 2010, McAdams et al. 2011)."""
 
+    model_id = 1
     name = "corotated"

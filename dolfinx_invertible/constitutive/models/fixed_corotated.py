@@ -39,4 +39,5 @@ def slopes(x, y, mu, lam):
 class FixedCorotated(Model):
     """Corotated model with the volume term λ/2 (J − 1)² (Stomakhin et al. 2012, §3.4)."""
 
+    model_id = 2
     name = "fixed_corotated"

@@ -60,5 +60,6 @@ def invariant_curvature(I1, I2, J, d, mu, lam):
 class NeoHookean(Model):
     """Compressible Neo-Hookean energy (the paper's example model); needs J > 0 unextended."""
 
+    model_id = 0
     name = "neo_hookean"
     requires_positive_volume = True

@@ -1,12 +1,14 @@
 """The registry of models, and the compiled dispatch from a model id to that model's tables.
 
-:data:`MODELS` lists every model once; a model's id is its position there. The kernels take
-that integer id as a compile-time literal, so each compiled chain (cached on disk) holds the one
-model it serves: a scene compiles its own model, not all of them. Adding a model is a new module
-with ``constants``, ``tables`` and ``slopes`` (and, for a model written in invariants,
-``invariant_terms`` and ``invariant_curvature``; ``USES_SECOND_INVARIANT = True`` if those read
-I₂) and its class in :data:`MODELS`: the dispatchers here look the module up. The tests check
-every registered model is dispatched to its own module.
+:data:`MODELS` lists every model once, in the order of the ``model_id`` each model class
+declares; the registry checks at import that the ids are unique and run 0, 1, ... without a gap.
+The kernels take that integer id as a compile-time literal, so each compiled chain (cached on
+disk) holds the one model it serves: a scene compiles its own model, not all of them. Adding a
+model is a new module with ``constants``, ``tables`` and ``slopes`` (and, for a model written in
+invariants, ``invariant_terms`` and ``invariant_curvature``; ``USES_SECOND_INVARIANT = True`` if
+those read I₂) and its class, with the next free ``model_id``, in :data:`MODELS`: the
+dispatchers here look the module up. The tests check every registered model is dispatched to its
+own module.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from dolfinx_invertible.constitutive.models.separable import (
 )
 from dolfinx_invertible.constitutive.models.stable_neo_hookean import StableNeoHookean
 from dolfinx_invertible.constitutive.models.stvk import StVK
+from dolfinx_invertible.constitutive.registry_ids import ordered_by_id
 
 __all__ = [
     "MODELS",
@@ -41,17 +44,10 @@ __all__ = [
 ]
 
 
-#: Every model, in id order: a model's id is its position here.
-MODELS: tuple[type[Model], ...] = (
-    NeoHookean,
-    Corotated,
-    FixedCorotated,
-    StableNeoHookean,
-    ARAP,
-    StVK,
+#: Every model, in the order of the ``model_id`` each declares: ``MODELS[model.model_id]``.
+MODELS: tuple[type[Model], ...] = ordered_by_id(
+    (NeoHookean, Corotated, FixedCorotated, StableNeoHookean, ARAP, StVK), "model_id", first=0
 )
-for _model_id, _model in enumerate(MODELS):
-    _model.model_id = _model_id
 
 _MODULES = tuple(sys.modules[model.__module__] for model in MODELS)
 

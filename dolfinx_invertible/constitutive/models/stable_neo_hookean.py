@@ -57,4 +57,5 @@ def invariant_curvature(I1, I2, J, d, mu, lam):
 class StableNeoHookean(Model):
     """Stable Neo-Hookean flesh model (Smith, de Goes, Kim 2018), inversion-safe by design."""
 
+    model_id = 3
     name = "stable_neo_hookean"

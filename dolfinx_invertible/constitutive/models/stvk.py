@@ -59,4 +59,5 @@ def invariant_curvature(I1, I2, J, d, mu, lam):
 class StVK(Model):
     """St. Venant–Kirchhoff energy (quadratic in Green strain; softens under compression)."""
 
+    model_id = 5
     name = "stvk"

@@ -1,4 +1,7 @@
-"""Sampling a run's state for scene records: singular values per cell, values at points."""
+"""Sampling a displacement for records: singular values per cell, values at points.
+
+The scenes record these at every step, and the reports compare runs by them.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +22,11 @@ class CellSingularValues:
 
     Built once per displacement (the expression compiles collectively); :meth:`__call__` returns
     on every rank the array (cells, d) over all cells of the mesh, in global cell order.
+
+    Parameters
+    ----------
+    u
+        The displacement, in a vector Lagrange space; F = I + ∇u.
     """
 
     def __init__(self, u: dolfinx.fem.Function):
@@ -58,7 +66,15 @@ class CellSingularValues:
 
 
 class PointValues:
-    """Values of a Function at fixed reference points, the same on every rank."""
+    """Values of a Function at fixed reference points, the same on every rank.
+
+    Parameters
+    ----------
+    function
+        The Function to evaluate.
+    points
+        Reference points, shape (points, geometric dimension); each must lie in the mesh.
+    """
 
     def __init__(self, function: dolfinx.fem.Function, points: np.ndarray):
         mesh = function.function_space.mesh
