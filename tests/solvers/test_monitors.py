@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import ufl
 
-from dolfinx_invertible import C2, Material, NeoHookean, _compat, lame
+from dolfinx_invertible import C2, Material, NeoHookean, _compat, lame, vector_function_space
 from dolfinx_invertible.solvers import (
     DIRECTION_KINDS,
     HyperelasticProblem,
@@ -33,7 +33,7 @@ def _beam(comm=MPI.COMM_WORLD, **options):
     mesh = dolfinx.mesh.create_box(
         comm, [np.zeros(3), np.array([1.0, 0.3, 0.3])], [6, 2, 2], dolfinx.mesh.CellType.tetrahedron
     )
-    V = _compat.vector_function_space(mesh, "Lagrange", 1)
+    V = vector_function_space(mesh, 1)
     u = dolfinx.fem.Function(V)
     clamped = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[0], 0.0))
     bc = dolfinx.fem.dirichletbc(np.zeros(3), dolfinx.fem.locate_dofs_topological(V, 2, clamped), V)
@@ -146,7 +146,7 @@ def test_replaced_directions_are_named_and_counted():
     The step of tests/solvers/test_robustness.py's blended-tangent test.
     """
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, "Lagrange", 1))
+    u = dolfinx.fem.Function(vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(1.0e3, 0.49)
     dynamics = ImplicitDynamics(
