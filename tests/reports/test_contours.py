@@ -18,9 +18,10 @@ from dolfinx_invertible.constitutive import (
     FixedCorotated,
     Material,
     NeoHookean,
+    contours,
     lame,
 )
-from dolfinx_invertible.reports import contours
+from dolfinx_invertible.reports import contours as report
 
 SPACING = 0.02
 
@@ -87,7 +88,7 @@ def test_corotated_kink_at_sum_zero_is_not_traced_as_a_contour():
 
 def test_fixed_corotated_contour_stays_out_of_the_inverted_region_and_approaches_unit_volume():
     ratios = (1.0, 10.0, 100.0)
-    branches, distances = contours.fixed_corotated_distances(ratios, spacing=SPACING)
+    branches, distances = report.fixed_corotated_distances(ratios, spacing=SPACING)
     values = [distances[f"{ratio:g}"] for ratio in ratios]
     # Decreasing towards 0, roughly like μ/λ.
     assert values[0] > 0.03
@@ -145,7 +146,7 @@ def test_distance_to_unit_volume_against_dense_sampling():
 
 @pytest.mark.parametrize("name", ["Neo-Hookean + C1", "Neo-Hookean + C2", "fixed corotated"])
 def test_tracing_does_not_depend_on_the_sign_of_the_eigenvectors(monkeypatch, name):
-    material = contours.report_materials()[name]
+    material = report.report_materials()[name]
     reference = contours.primary_contour(material, spacing=SPACING)
     stiff_direction = contours._stiff_direction
     rng = np.random.default_rng(7)
@@ -177,7 +178,7 @@ def test_saddle_cells_connect_the_branches_of_the_same_hyperbola(monkeypatch, of
         gradient = np.column_stack([p, np.ones(len(points))])
         return gradient, np.tile(np.diag([2.0, 1.0]), (len(points), 1, 1))
 
-    monkeypatch.setattr(contours, "_derivatives", derivatives)
+    monkeypatch.setattr(contours, "energy_derivatives", derivatives)
     material = Material(Corotated(mu=1.0, lam=1.0))  # not evaluated
     polylines = contours.primary_contour(
         material, window=((0.0, 2.0), (0.0, 2.0)), spacing=0.1, canonical_only=False
@@ -252,7 +253,7 @@ def test_stretched_corotated_element_matches_closed_form_equilibrium():
     mu, lam = 1.0, 9.0
     material = Material(Corotated(mu=mu, lam=lam))
     stretches = np.linspace(1.0, 3.5, 11)
-    trajectories = contours.stretch_trajectories(
+    trajectories = report.stretch_trajectories(
         material, stretches=stretches, lateral_stiffness=(0.0, 4.0)
     )
     assert trajectories.shape == (2, 11, 2)
@@ -268,7 +269,7 @@ def test_relaxing_elements_reach_the_contour_first_then_rest():
     # The stiff mode relaxes first: a stretched corotated element reaches σ₁ + σ₂ = 2 long
     # before it reaches the rest state, then slides along the line.
     material = Material(Corotated(mu=1.0, lam=9.0))
-    trajectories = contours.relaxation_trajectories(material, np.array([[2.6, -0.9], [3.4, 1.7]]))
+    trajectories = report.relaxation_trajectories(material, np.array([[2.6, -0.9], [3.4, 1.7]]))
     assert trajectories.shape == (2, 61, 2)
     assert np.all(trajectories[..., 0] >= np.abs(trajectories[..., 1]))
     for path in trajectories:
@@ -289,7 +290,7 @@ def test_quiver_arrows_are_minus_the_gradient():
     corotated = Material(Corotated(mu=mu, lam=lam))
     for material in (corotated, _neo_hookean_c2()):
         figure, axes = _new_axes()
-        drawn = contours.plot_contours(axes, material, spacing=0.05)
+        drawn = report.plot_contours(axes, material, spacing=0.05)
         quiver = drawn["quiver"]
         points = np.column_stack([quiver.X, quiver.Y])
         assert len(points) > 50
@@ -309,18 +310,18 @@ def test_overlay_draws_each_trajectory_and_validates_its_input():
     trajectories = np.array(
         [[[1.0, 1.0], [2.0, 0.5], [3.0, -0.2]], [[1.2, 0.9], [1.1, 0.95], [1.0, 1.0]]]
     )
-    lines = contours.overlay_trajectories(axes, trajectories, labels=["a", "b"])
+    lines = report.overlay_trajectories(axes, trajectories, labels=["a", "b"])
     assert len(lines) == 2
     np.testing.assert_array_equal(np.column_stack(lines[0].get_data()), trajectories[0])
     assert [line.get_label() for line in lines] == ["a", "b"]
     with pytest.raises(ValueError, match="shape"):
-        contours.overlay_trajectories(axes, trajectories[0])
+        report.overlay_trajectories(axes, trajectories[0])
     with pytest.raises(ValueError, match="IFE convention"):
-        contours.overlay_trajectories(axes, trajectories[:, :, ::-1])
+        report.overlay_trajectories(axes, trajectories[:, :, ::-1])
     with pytest.raises(ValueError, match="non-finite"):
-        contours.overlay_trajectories(axes, np.where(trajectories > 2.5, np.nan, trajectories))
+        report.overlay_trajectories(axes, np.where(trajectories > 2.5, np.nan, trajectories))
     with pytest.raises(ValueError, match="labels"):
-        contours.overlay_trajectories(axes, trajectories, labels=["a"])
+        report.overlay_trajectories(axes, trajectories, labels=["a"])
 
 
 def test_bad_tracing_input_is_rejected():
@@ -336,7 +337,7 @@ def test_bad_tracing_input_is_rejected():
 
 
 def test_run_writes_the_figures_and_a_json_summary(tmp_path):
-    summary = contours.run(tmp_path, quick=True)
+    summary = report.run(tmp_path, quick=True)
     json.dumps(summary)
     assert set(summary["figures"]) == {"contours", "stretch", "relaxation", "fixed_corotated"}
     for name in summary["figures"].values():

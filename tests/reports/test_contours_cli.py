@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from dolfinx_invertible.cli import main, parser
-from dolfinx_invertible.reports import contours
+from dolfinx_invertible.reports.contours import figures
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +58,7 @@ def test_drawn_lines_are_the_files_data_on_the_runs_material(scene_runs, scene):
     trajectories = np.load(directory / "trajectories.npy")
     summary = json.loads((directory / "summary.json").read_text())
     assert trajectories.shape[0] == (8 if scene == "mattress" else 3)
-    figure, described = contours._scene_figure([directory], 0.04, "title")
+    figure, described = figures.scene_figure([directory], 0.04, "title")
     (axes,) = figure.axes
     # The trajectories are the lines at z-order 4 (contours 3, markers 6).
     drawn = [line.get_xydata() for line in axes.get_lines() if line.get_zorder() == 4]

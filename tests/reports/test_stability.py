@@ -17,6 +17,7 @@ import sys
 import pytest
 
 from dolfinx_invertible.reports import REPORTS, stability
+from dolfinx_invertible.reports.stability import outputs, runner, study
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -47,10 +48,10 @@ def test_cell_parameters_are_dimensionless_in_size_and_time():
         assert cell.dimensionless_step == pytest.approx(parameters["dt"] / unit)
         # At least the minimum number of steps, and the scene's end time in L/c otherwise.
         steps = parameters["t_end"] / parameters["dt"]
-        assert steps >= stability.MINIMUM_STEPS * (1 - 1e-12)
+        assert steps >= study.MINIMUM_STEPS * (1 - 1e-12)
         setup = stability.SCENE_SETUPS[cell.scene]
         if setup.end_time is not None:
-            expected = max(setup.end_time, stability.MINIMUM_STEPS * cell.dimensionless_step)
+            expected = max(setup.end_time, study.MINIMUM_STEPS * cell.dimensionless_step)
             assert parameters["t_end"] / unit == pytest.approx(expected)
     # The same dimensionless step for two (E, dt) pairs: identical scene parameters but for
     # the scales E, dt and t_end.
@@ -135,15 +136,15 @@ def test_overlap_count_finds_a_body_folded_through_itself():
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 3, 3, 3)
     u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: np.stack([0.3 * x[0] * x[1], 0.1 * x[2], np.zeros_like(x[0])]))
-    assert stability.overlapping_cells(u) == 0
+    assert runner.overlapping_cells(u) == 0
     # A rigid rotation moves every cell and overlaps nothing.
     u.interpolate(lambda x: np.stack([-x[1] - x[0], x[0] - x[1], np.zeros_like(x[0])]))
-    assert stability.overlapping_cells(u) == 0
+    assert runner.overlapping_cells(u) == 0
     # Fold the half x > 1/2 back over the other: its cells lie on the first half's.
     u.interpolate(
         lambda x: np.stack([np.where(x[0] > 0.5, 1.0 - 2.0 * x[0], 0.0), 0 * x[1], 0 * x[2]])
     )
-    assert stability.overlapping_cells(u) > 0
+    assert runner.overlapping_cells(u) > 0
 
 
 def test_inverted_energy_minimum_finds_the_energies_below_rest():
@@ -151,7 +152,7 @@ def test_inverted_energy_minimum_finds_the_energies_below_rest():
 
     def lowest(method, nu):
         cell = stability.Cell("collapse", method, nu, 1.0e5, 1.0e-2)
-        return stability.inverted_energy_minimum(Parameters(**cell.parameters()))
+        return runner.inverted_energy_minimum(Parameters(**cell.parameters()))
 
     # Neo-Hookean + C1 with k = 20 E: inverted states below rest from λ/μ ≈ 49 on.
     assert lowest("nh-c1", 0.45) > 0.0 and lowest("nh-c1", 0.499) < -1.0e3
@@ -186,7 +187,7 @@ def test_quick_report_from_the_command_line(tmp_path):
         for row in rows
     }
     assert len(rows) == len(cells) and keys == {cell.key for cell in cells}
-    assert all(row["outcome"] in stability._DISPLAY for row in rows)
+    assert all(row["outcome"] in outputs._DISPLAY for row in rows)
     markdown = (out / "stability.md").read_text()
     assert "--quick" in markdown and "## Every cell that did not come through" in markdown
     labels = {method.name: method.label for method in stability.METHODS}

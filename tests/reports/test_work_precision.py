@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from dolfinx_invertible.reports import work_precision
+from dolfinx_invertible.reports.error_vs_time import work_precision
 
 
 def test_relative_errors_by_hand():

@@ -1,0 +1,74 @@
+"""The command line of ``report stability``."""
+
+from __future__ import annotations
+
+import argparse
+
+from dolfinx_invertible.reports.stability.report import run
+from dolfinx_invertible.reports.stability.study import METHODS, SCENES
+
+__all__ = ["add_arguments", "command"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Command-line options of ``report stability``."""
+    from dolfinx_invertible.reports import add_output_arguments
+
+    add_output_arguments(
+        parser,
+        "results/reports/stability",
+        "the quick subset: every scene and method at nu = 0.45, E = 1e5, dt = 1e-2, and C2 and "
+        "corotated also at E = 1e7, dt = 1e-3 (the same dt c/L)",
+    )
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    parser.add_argument(
+        "--resume", action="store_true", help="reuse finished cells of cells.jsonl in --out"
+    )
+    parser.add_argument(
+        "--scene", action="append", choices=SCENES, help="only this scene (repeatable)"
+    )
+    parser.add_argument(
+        "--method",
+        action="append",
+        choices=[method.name for method in METHODS],
+        help="only this method (repeatable)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no line per finished cell")
+
+
+def command(arguments: argparse.Namespace) -> int:
+    """Run ``report stability``; exit code 1 if a worker crashed or a cell timed out."""
+    import signal
+
+    if arguments.workers < 1:
+        raise SystemExit("--workers must be at least 1")
+
+    def interrupt(number, frame):
+        raise KeyboardInterrupt(f"stopped by {signal.Signals(number).name}")
+
+    signal.signal(signal.SIGTERM, interrupt)
+    words = ["python -m dolfinx_invertible report stability"]
+    if arguments.quick:
+        words.append("--quick")
+    words.append(f"--out {arguments.out}")
+    for scene in arguments.scene or ():
+        words.append(f"--scene {scene}")
+    for method in arguments.method or ():
+        words.append(f"--method {method}")
+    result = run(
+        arguments.out,
+        quick=arguments.quick,
+        workers=arguments.workers,
+        resume=arguments.resume,
+        scenes=arguments.scene,
+        methods=arguments.method,
+        progress=not arguments.quiet,
+        command_line=" ".join(words),
+    )
+    outcomes = ", ".join(f"{name} {count}" for name, count in sorted(result["outcomes"].items()))
+    print(
+        f"{result['cells']} cells in {result['wall_time_s'] / 60:.1f} min: {outcomes}; "
+        f"written to {arguments.out}"
+    )
+    lost = result["outcomes"].get("crashed", 0) + result["outcomes"].get("timeout", 0)
+    return 1 if lost else 0

@@ -1,0 +1,163 @@
+"""Run the stability study and write its files."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import pathlib
+import time
+from collections import Counter
+from collections.abc import Sequence
+from typing import Any
+
+from dolfinx_invertible.reports.stability.diagnosis import diagnose
+from dolfinx_invertible.reports.stability.outputs import (
+    display_outcome,
+    plot_heat_map,
+    summary_lines,
+    write_csv,
+)
+from dolfinx_invertible.reports.stability.pool import run_cells
+from dolfinx_invertible.reports.stability.study import METHODS_BY_NAME, SCENES, matrix, method_label
+
+__all__ = ["run"]
+
+
+def run(
+    output_directory,
+    *,
+    quick: bool = False,
+    workers: int = 2,
+    resume: bool = False,
+    scenes: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+    progress: bool = False,
+    command_line: str | None = None,
+) -> dict[str, Any]:
+    """Run the study (or its quick subset) and write the CSV, the heat maps and the summary.
+
+    Parameters
+    ----------
+    output_directory
+        Where ``stability.csv``, ``stability.md``, ``stability_SCENE.png`` and ``cells.jsonl``
+        (every record in full) go.
+    quick
+        The quick subset (:func:`matrix`).
+    workers
+        Worker processes.
+    resume
+        Reuse the records in ``cells.jsonl`` of cells of this matrix that ran with the same
+        parameters.
+    scenes, methods
+        Restrict the matrix (for development); ``None``: all.
+    progress
+        Print one line per finished cell.
+    command_line
+        The command to state in the summary; by default the one that regenerates this run.
+
+    Returns
+    -------
+    dict
+        ``files``, ``cells``, ``outcomes`` (counts), ``causes`` (counts), ``wall_time_s``.
+    """
+    directory = pathlib.Path(output_directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    unknown = [name for name in scenes or () if name not in SCENES]
+    unknown += [name for name in methods or () if name not in METHODS_BY_NAME]
+    if unknown:
+        raise ValueError(
+            f"unknown scene or method {', '.join(unknown)}; scenes: {', '.join(SCENES)}; "
+            f"methods: {', '.join(METHODS_BY_NAME)}"
+        )
+    cells = [
+        cell
+        for cell in matrix(quick)
+        if (not scenes or cell.scene in scenes) and (not methods or cell.method in methods)
+    ]
+    records_path = directory / "cells.jsonl"
+    done: dict[tuple, dict[str, Any]] = {}
+    if resume and records_path.exists():
+        from dolfinx_invertible.io.step_log import json_ready
+
+        wanted = {cell.key: cell for cell in cells}
+        for line in records_path.read_text().splitlines():
+            with contextlib.suppress(ValueError, KeyError):
+                record = json.loads(line)
+                key = (record["scene"], record["method"], record["nu"], record["E"], record["dt"])
+                cell = wanted.get(key)
+                if cell is not None and record.get("parameters") == json_ready(cell.parameters()):
+                    # The causes are read from the data again: the diagnosis may have changed.
+                    record["cause"], record["cause_detail"] = diagnose(record)
+                    done[key] = record
+    todo = [cell for cell in cells if cell.key not in done]
+    load_before = _load_average()
+    begin = time.perf_counter()
+    logs = directory / "logs"
+    logs.mkdir(exist_ok=True)
+    with records_path.open("a" if resume else "w") as stream:
+        for record in done.values():
+            if not resume:
+                stream.write(json.dumps(record) + "\n")
+
+        def finished(record: dict[str, Any]) -> None:
+            record["workers"] = workers
+            stream.write(json.dumps(record) + "\n")
+            stream.flush()
+            if progress:
+                print(
+                    f"{record['scene']:>14} {method_label(record['method']):>34} "
+                    f"ν={record['nu']:<5g} "
+                    f"E={record['E']:<7g} dt={record['dt']:<6g} {record.get('outcome'):>17} "
+                    f"{record.get('cause') or '':<26} {record.get('wall_time_s') or 0:6.1f} s",
+                    flush=True,
+                )
+
+        new = run_cells(todo, workers=workers, log_directory=logs, on_result=finished)
+    wall_time = time.perf_counter() - begin
+    by_key = {**done, **{tuple(_key(record)): record for record in new}}
+    records = [by_key[cell.key] for cell in cells if cell.key in by_key]
+    if not any(record.get("outcome") == "crashed" for record in records):
+        for log in logs.glob("worker-*.log"):
+            log.unlink()
+        with contextlib.suppress(OSError):
+            logs.rmdir()
+    files = {"csv": "stability.csv", "summary": "stability.md"}
+    write_csv(records, directory / files["csv"])
+    for scene in SCENES:
+        if any(record["scene"] == scene for record in records):
+            name = f"stability_{scene.replace('-', '_')}.png"
+            plot_heat_map(records, scene, directory / name)
+            files[f"heat_map_{scene}"] = name
+    if command_line is None:
+        command_line = (
+            "python -m dolfinx_invertible report stability"
+            + (" --quick" if quick else "")
+            + f" --out {directory}"
+        )
+    lines = summary_lines(
+        records,
+        quick=quick,
+        wall_time=wall_time,
+        load=(load_before, _load_average()) if load_before is not None else None,
+        command_line=command_line,
+    )
+    (directory / files["summary"]).write_text("\n".join(lines))
+    return {
+        "files": files,
+        "cells": len(records),
+        "outcomes": dict(Counter(display_outcome(record) for record in records)),
+        "causes": dict(Counter(record.get("cause") for record in records)),
+        "wall_time_s": wall_time,
+    }
+
+
+def _key(record: dict[str, Any]) -> tuple:
+    return (record["scene"], record["method"], record["nu"], record["E"], record["dt"])
+
+
+def _load_average() -> float | None:
+    try:
+        return os.getloadavg()[0]
+    except OSError:
+        return None
