@@ -200,8 +200,12 @@ class EnergyMinimizer:
 
     @property
     def max_iterations(self) -> int:
-        """The Newton iteration cap of a solve (``snes_max_it``)."""
+        """The Newton iteration cap of a solve (``snes_max_it``); settable."""
         return int(self.snes.getTolerances()[3])
+
+    @max_iterations.setter
+    def max_iterations(self, value: int) -> None:
+        self.snes.setTolerances(max_it=int(value))
 
     @property
     def blend_after(self) -> int | None:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from dolfinx_invertible.reports.error_vs_time.outputs import write_results
-from dolfinx_invertible.reports.error_vs_time.study import REFLECTION, Case, plan
+from dolfinx_invertible.reports.error_vs_time.study import Case, plan
 from dolfinx_invertible.reports.error_vs_time.work_precision import relative_errors
 
 __all__ = ["KRYLOV_MAX_IT", "run", "run_case"]
@@ -40,50 +40,14 @@ _SCENES = {
 
 
 def _scene_class(case: Case):
-    """Return the scene class of ``case``: its start, linear solver and sampling."""
-    from time import perf_counter
-
-    from dolfinx_invertible.fem import PointValues
+    """Return the scene class of ``case``: the study's scene, or the collapse reflected."""
     from dolfinx_invertible.scenes import get_scene
 
-    base = get_scene(_SCENES[case.study])
-    points = _sample_points(case.study)
-    linear_solver = case.linear_solver
-    gradient = REFLECTION if case.start == "reflected" else None
+    if case.start == "reflected":
+        from dolfinx_invertible.reports.error_vs_time.reflected_collapse import ReflectedCollapse
 
-    class Probed(base):
-        def initial_displacement(self):
-            if gradient is None:
-                return super().initial_displacement()
-            centre = 0.5 * self.parameters.size
-
-            def displacement(x):
-                return (gradient - np.eye(3)) @ (x - centre)
-
-            return displacement
-
-        def problem_options(self):
-            options = dict(super().problem_options())
-            options["linear_solver"] = linear_solver
-            return options
-
-        def record(self, run):
-            super().record(run)
-            if getattr(self, "_stepping_started", None) is None:
-                # The first record comes after the setup, before the first step.
-                self._stepping_started = perf_counter()
-
-        def quantities(self, run):
-            values = dict(super().quantities(run))
-            values["stepping_time_s"] = perf_counter() - self._stepping_started
-            if points is not None:
-                values["samples"] = PointValues(run.u, points)().tolist()
-            elif "tip_displacement" in values:
-                values["samples"] = [[values["tip_displacement"]]]
-            return values
-
-    Probed.__name__ = Probed.__qualname__ = f"Probed{base.__name__}"
-    return Probed
+        return ReflectedCollapse
+    return get_scene(_SCENES[case.study])
 
 
 def _parameters(case: Case, scene_class):
@@ -135,8 +99,22 @@ def run_case(case: Case, *, comm=None) -> tuple[dict[str, Any], np.ndarray | Non
     }
     start = perf_counter()
     samples = None
+    from dolfinx_invertible.reports.error_vs_time.probe import Probe
+
+    probe = Probe(_sample_points(case.study))
     try:
-        summary = run_scene(scene_class, parameters, output=None, petsc_options=petsc, comm=comm)
+        summary = run_scene(
+            scene_class,
+            parameters,
+            output=None,
+            petsc_options=petsc,
+            comm=comm,
+            observers=[probe],
+            problem_options={"linear_solver": case.linear_solver},
+        )
+        summary.update(probe.values)
+        if probe.points is None and "tip_displacement" in summary:
+            summary["samples"] = [[summary["tip_displacement"]]]
     except Exception as error:  # a run that breaks is a result of the study, not its end
         row.update(completed=False, outcome="error", reason=f"{type(error).__name__}: {error}")
         row["wall_time_s"] = perf_counter() - start

@@ -1,20 +1,33 @@
-"""What a cell tracks beyond the runner's summary: a SNES monitor and the step limits' caps.
+"""What a cell tracks beyond the runner's summary: the last Newton attempt and the step caps.
 
-The recorder reaches into the scene run's solver (its minimiser, SNES and step limits) and
-subclasses the scene class at run time to get the ``record`` hook.
+A :class:`~dolfinx_invertible.scenes.RunObserver` on the cell's run: it keeps the latest Newton
+iterate and residual norms of the current solve (after a failed step: of its last attempt) and
+the caps the step limits put on its directions, besides a few figures of every stored step.
 """
 
 from __future__ import annotations
 
+from dolfinx_invertible.scenes.observer import RunObserver
+
 __all__ = ["Recorder"]
 
 
-class Recorder:
-    """What a cell tracks beyond the runner's summary, through the scene's ``record`` hook.
+class Recorder(RunObserver):
+    """Observes a cell's run: the stored states and the Newton iterates of the last attempt.
 
-    At t = 0 it puts a SNES monitor on the step's minimiser, which keeps the latest Newton
-    iterate and residual norms of the current solve (after a failed step: of its last attempt),
-    and wraps the step limits so that their caps are kept too.
+    Attributes
+    ----------
+    run
+        The run, once started.
+    kinetic_max
+        The largest kinetic energy of a stored state.
+    projected
+        Newton iterations of the accepted steps whose direction came from the projected tangent.
+    last_inverted_time
+        The time of the last stored state with an inverted cell.
+    iterate, norms, caps
+        The latest Newton iterate of the current (or last) attempt, the residual norms of its
+        iterations, and the step limits' caps on its directions.
     """
 
     def __init__(self):
@@ -26,25 +39,29 @@ class Recorder:
         self.norms: list[float] = []
         self.caps: list[float] = []
 
-    def scene(self, scene_class):
-        """Return a subclass of ``scene_class`` whose ``record`` hook reports to this recorder."""
-        recorder = self
+    def start(self, run) -> None:
+        """Record the initial state."""
+        self._observe(run)
 
-        class Observed(scene_class):
-            def record(self, run) -> None:
-                recorder.observe(run)
-                super().record(run)
+    def step(self, run) -> None:
+        """Record a stored state."""
+        self._observe(run)
 
-        Observed.__name__ = scene_class.__name__
-        return Observed
+    def iteration(self, run, iteration) -> None:
+        """Keep the iterate and its residual norm (a new attempt starts at iteration 0)."""
+        if iteration.iteration == 0:
+            self.norms = []
+            self.caps = []
+        if self.iterate is None:
+            self.iterate = iteration.iterate.duplicate()
+        iteration.iterate.copy(self.iterate)
+        self.norms.append(iteration.residual_norm)
 
-    def observe(self, run) -> None:
-        """Record the state after a step (and at t = 0)."""
-        if self.run is None and run.dynamics is not None:
-            minimizer = run.dynamics.problem.solver
-            self.iterate = minimizer.problem.create_vector()
-            minimizer.snes.setMonitor(self._monitor)
-            minimizer.step_limits = [_CapRecorder(limit, self) for limit in minimizer.step_limits]
+    def step_cap(self, run, cap) -> None:
+        """Keep a step limit's cap."""
+        self.caps.append(cap.cap)
+
+    def _observe(self, run) -> None:
         self.run = run
         kinetic = run.kinetic_energy
         if kinetic is not None:
@@ -53,24 +70,3 @@ class Recorder:
             self.projected += run.result.projected_iterations
         if run.diagnostics.get("inverted_cells", 0) > 0:
             self.last_inverted_time = run.time
-
-    def _monitor(self, snes, iteration: int, norm: float) -> None:
-        if iteration == 0:
-            self.norms = []
-            self.caps = []
-        snes.getSolution().copy(self.iterate)
-        self.norms.append(float(norm))
-
-
-class _CapRecorder:
-    """A step limit wrapped so that the caps it returns are kept."""
-
-    def __init__(self, limit, recorder: Recorder):
-        self.limit = limit
-        self.recorder = recorder
-
-    def largest_step(self, direction, sign: float = 1.0) -> float:
-        """Return the wrapped limit's cap, keeping it."""
-        cap = self.limit.largest_step(direction, sign)
-        self.recorder.caps.append(float(cap))
-        return cap

@@ -142,7 +142,7 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
 
     run = recorder.run
     dynamics = run.dynamics
-    minimizer = dynamics.problem.solver
+    minimizer = run.minimizer
     data: dict[str, Any] = {"attempt_iterations": max(len(recorder.norms) - 1, 0)}
     norms = recorder.norms
     if len(norms) > 1 and norms[0] > 0.0:
@@ -155,7 +155,8 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
             cap_last=caps[-1], cap_min=min(caps), cap_median=float(sorted(caps)[len(caps) // 2])
         )
     state = dolfinx.fem.Function(run.u.function_space)
-    recorder.iterate.copy(_compat.petsc_vector(state))
+    if recorder.iterate is not None:
+        recorder.iterate.copy(_compat.petsc_vector(state))
     state.x.scatter_forward()
     data.update(_state_diagnostics(state, material, minimizer))
     step = dynamics.controller.step
@@ -168,8 +169,8 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
         data["retry"] = error.stage
     if data["retry"] == "iteration cap":
         # Would Newton get there with more iterations? Same step, a larger cap.
-        _, _, _, cap = minimizer.snes.getTolerances()
-        minimizer.snes.setTolerances(max_it=LONG_SOLVE)
+        cap = minimizer.max_iterations
+        minimizer.max_iterations = LONG_SOLVE
         dynamics.controller.step = step
         try:
             data["long_retry_iterations"] = dynamics.step(remaining).newton_iterations
@@ -177,7 +178,7 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
         except SolverError as error:
             data["long_retry"] = error.stage
         finally:
-            minimizer.snes.setTolerances(max_it=cap)
+            minimizer.max_iterations = cap
     return data
 
 
@@ -274,7 +275,7 @@ def _continue(run, cell: Cell) -> dict[str, Any]:
     forms = getattr(dynamics.problem, "forms", None)
     if data["continued"] == "completed" and hasattr(forms, "set_projection"):
         forms.set_projection(False)
-        curvature = _state_diagnostics(run.u, run.material, dynamics.problem.solver)
+        curvature = _state_diagnostics(run.u, run.material, run.minimizer)
         data.update(
             continued_tangent_min=curvature.get("tangent_min"),
             continued_tangent_max=curvature.get("tangent_max"),
@@ -335,7 +336,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
             record["cause"], record["cause_detail"] = diagnose(record)
             return record
     recorder = Recorder()
-    summary = run_scene(recorder.scene(scene_class), parameters, output=None, comm=comm)
+    summary = run_scene(scene_class, parameters, output=None, comm=comm, observers=[recorder])
     snes, ksp, failed_step = _parse_reason(summary.get("reason"))
     stepping = summary.get("stepping", {})
     kinetic = summary.get("kinetic_energy_final")
