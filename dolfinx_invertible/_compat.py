@@ -312,7 +312,9 @@ def geometry_dofmap(mesh) -> np.ndarray:
     geometry = mesh.geometry
     if DOLFINX_VERSION < (0, 7):
         dofmap = geometry.dofmap  # an AdjacencyList
-        return dofmap.array.reshape(dofmap.num_nodes, -1)
+        # A rank may hold no cell: the width then comes from the coordinate element.
+        nodes = geometry.cmap.create_dof_layout().num_dofs
+        return dofmap.array.reshape(dofmap.num_nodes, nodes)
     # 0.11 deprecates ``dofmap`` for ``dofmaps`` (one per cell type of a mixed mesh).
     return geometry.dofmaps[0] if hasattr(geometry, "dofmaps") else geometry.dofmap
 

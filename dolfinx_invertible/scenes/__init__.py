@@ -20,6 +20,7 @@ from dolfinx_invertible.scenes.scene import Scene
 __all__ = [
     "SCENES",
     "Parameters",
+    "Run",
     "RunObserver",
     "Scene",
     "get_scene",
@@ -52,6 +53,15 @@ def get_scene(name: str) -> type[Scene]:
         raise ValueError(f"unknown scene {name!r}; the scenes are {', '.join(SCENES)}")
     module, _, cls = SCENES[name].partition(":")
     return getattr(importlib.import_module(f"dolfinx_invertible.scenes.{module}"), cls)
+
+
+def __getattr__(name: str):
+    """Import :class:`Run` (which loads DOLFINx) on first use."""
+    if name == "Run":
+        from dolfinx_invertible.scenes.run import Run
+
+        return Run
+    raise AttributeError(f"module 'dolfinx_invertible.scenes' has no attribute {name!r}")
 
 
 def run_scene(*args, **kwargs):

@@ -1,7 +1,7 @@
 """Watching a scene run: the hooks :func:`~dolfinx_invertible.scenes.run_scene` calls.
 
 Subclass :class:`RunObserver`, override the hooks you need and pass an instance to
-``run_scene(..., observers=[...])``. Every hook gets the :class:`~.runner.Run` (the scene, the
+``run_scene(..., observers=[...])``. Every hook gets the :class:`~.run.Run` (the scene, the
 mesh, ``u``, the stepping objects and the run's statistics so far) and is called on every rank,
 so collective work (assembling, reducing) is allowed inside. The solver-level records are those
 of :mod:`dolfinx_invertible.solvers.monitors`.
@@ -11,10 +11,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from dolfinx_invertible.solvers.monitors import NewtonIteration, StepAttempt, StepCap
-
-if TYPE_CHECKING:
-    from dolfinx_invertible.scenes.runner import Run
+if TYPE_CHECKING:  # importing the scenes must not load DOLFINx
+    from dolfinx_invertible.scenes.run import Run
+    from dolfinx_invertible.solvers.monitors import NewtonIteration, StepAttempt, StepCap
 
 __all__ = ["RunObserver"]
 

@@ -15,7 +15,6 @@ The output of a run in its directory (``results/SCENE/`` by default):
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import math
 import os
@@ -37,6 +36,7 @@ from dolfinx_invertible.io.xdmf import ResultWriter
 from dolfinx_invertible.scenes.observer import RunObserver
 from dolfinx_invertible.scenes.outcome import relaxation_outcome, rest_distance
 from dolfinx_invertible.scenes.parameters import PROJECT_CHOICES, Parameters, make_material
+from dolfinx_invertible.scenes.run import Run
 from dolfinx_invertible.scenes.scene import Scene
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem
@@ -44,7 +44,7 @@ from dolfinx_invertible.solvers.monitors import NewtonIteration, StepAttempt, St
 from dolfinx_invertible.solvers.results import SolverError, SolveResult
 from dolfinx_invertible.solvers.stepping import StepController, solve_load_steps
 
-__all__ = ["Run", "RunInterrupted", "run_scene", "check_output_directory"]
+__all__ = ["RunInterrupted", "check_output_directory", "run_scene"]
 
 
 class RunInterrupted(BaseException):  # noqa: N818 (an interruption, not an error)
@@ -53,59 +53,6 @@ class RunInterrupted(BaseException):  # noqa: N818 (an interruption, not an erro
     A :class:`BaseException`, like :class:`KeyboardInterrupt`: handlers of ``Exception`` (e.g.
     around a file rewrite) must not turn it into an error.
     """
-
-
-@dataclasses.dataclass
-class Run:
-    """The state of a scene run, as the scene's hooks see it after every step.
-
-    Attributes
-    ----------
-    scene, parameters, material, mesh, u
-        What runs.
-    time
-        Time (dynamic) or pseudo-time (quasi-static) of the last completed step.
-    result
-        The last step's :class:`~dolfinx_invertible.SolveResult` (None at t = 0).
-    diagnostics
-        Global counts of the last completed step (:func:`~dolfinx_invertible.summary`).
-    dynamics, problem
-        The stepping object (one of them is None).
-    controller
-        The step controller (of the dynamics, or of the load steps).
-    """
-
-    scene: Scene
-    parameters: Parameters
-    material: Any
-    mesh: Any
-    u: Any
-    time: float = 0.0
-    result: SolveResult | None = None
-    diagnostics: dict[str, Any] = dataclasses.field(default_factory=dict)
-    dynamics: ImplicitDynamics | None = None
-    problem: HyperelasticProblem | None = None
-    controller: StepController | None = None
-    steps: int = 0
-    newton_total: int = 0
-    newton_max: int = 0
-    linear_total: int = 0
-    max_inverted: int = 0
-    min_J: float = math.inf  # noqa: N815 (the notation: J = det F)
-    nan_encountered: bool = False
-    svd_points: dict[str, list[float]] = dataclasses.field(default_factory=dict)
-    started: float = dataclasses.field(default_factory=perf_counter)
-
-    @property
-    def minimizer(self):
-        """The :class:`~dolfinx_invertible.EnergyMinimizer` that solves every step."""
-        stepper = self.dynamics.problem if self.dynamics is not None else self.problem
-        return stepper.solver
-
-    @property
-    def kinetic_energy(self) -> float | None:
-        """Kinetic energy of the current state (dynamic scenes, collective)."""
-        return None if self.dynamics is None else self.dynamics.kinetic_energy
 
 
 def check_output_directory(path: Path, comm) -> None:

@@ -106,7 +106,7 @@ class Scene:
         return {}
 
     def record(self, run) -> None:
-        """Look at the :class:`~.runner.Run` after every accepted step (e.g. to sample it)."""
+        """Look at the :class:`~.run.Run` after every accepted step (e.g. to sample it)."""
 
     def quantities(self, run) -> dict[str, Any]:
         """Return the scene's own summary values at the end (collective)."""

@@ -29,8 +29,9 @@ from collections.abc import Callable
 
 from petsc4py import PETSc
 
+from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
 from dolfinx_invertible.solvers.results import ksp_reason_name
-from dolfinx_invertible.solvers.truncated_cg import TruncatedCG
+from dolfinx_invertible.solvers.truncated_cg import TruncatedCG, truncated_cg
 
 __all__ = [
     "BLEND_WEIGHTS",
@@ -123,10 +124,10 @@ class NewtonDirections:
     ----------
     problem
         The :class:`~dolfinx_invertible.solvers.problem.EnergyProblem`.
-    matrix
-        The matrix SNES assembles the tangent into and factorises.
     residual
         The residual vector of the current iterate.
+    options
+        The minimiser's :class:`~dolfinx_invertible.solvers.options.MinimizerOptions`.
     tangent_switch
         ``tangent_switch(projected)`` switches the problem's tangent between exact and
         SPD-projected; ``None`` means no replacement is possible.
@@ -134,9 +135,6 @@ class NewtonDirections:
         Projected iterations of a solve after which :class:`BlendedTangent` replaces
         :class:`ProjectedTangent` (where the factorisation reports its inertia); ``None``
         never, until :meth:`escalate`.
-    solve
-        ``solve(ksp, y)`` solves ``matrix · y = residual`` with ``ksp`` (the minimiser's
-        options in effect).
     assembled
         Called with each assembled tangent (the tolerances read its diagonal).
     tangent
@@ -144,6 +142,9 @@ class NewtonDirections:
 
     Attributes
     ----------
+    matrix, preconditioner
+        The matrices SNES assembles the tangent and its preconditioning matrix into (one and
+        the same but on the iterative path, where the latter holds the projected tangent).
     kind
         Where the current iteration's direction came from (:data:`.monitors.DIRECTION_KINDS`).
     projected_iterations, blended_iterations
@@ -156,12 +157,11 @@ class NewtonDirections:
     def __init__(
         self,
         problem,
-        matrix: PETSc.Mat,
         residual: PETSc.Vec,
+        options,
         *,
         tangent_switch: Callable[[bool], None] | None,
         blend_after: int | None,
-        solve: Callable[[PETSc.KSP, PETSc.Vec], None],
         assembled: Callable[[PETSc.Mat], None],
         tangent: str = "exact",
     ) -> None:
@@ -170,18 +170,36 @@ class NewtonDirections:
         if tangent not in ("exact", "projected"):
             raise ValueError(f"tangent must be 'exact' or 'projected', got {tangent!r}")
         self.problem = problem
-        self.matrix = matrix
         self.residual = residual
+        self.options = options
         self.tangent_switch = tangent_switch
         self.blend_after = None if blend_after is None else int(blend_after)
         self.tangent = tangent
-        self._solve = solve
         self._assembled = assembled
+        near_nullspace = rigid_body_near_nullspace(problem.u.function_space)
+        self.matrix = problem.create_matrix()
+        self.matrix.setNearNullSpace(near_nullspace)
+        # The iterative path preconditions CG on the exact tangent with the projected one.
+        self.preconditioner = self.matrix
+        if options.linear_solver == "iterative" and tangent_switch is not None:
+            self.preconditioner = problem.create_matrix()
+            self.preconditioner.setNearNullSpace(near_nullspace)
         self._projected = ProjectedTangent()
         self._blended = BlendedTangent()
         #: The truncated CG solving for the directions where the iterative path runs it.
         self.truncated: TruncatedCG | None = None
+        self._ksp: PETSc.KSP | None = None
         self.start_solve()
+
+    def choose_krylov_method(self, ksp: PETSc.KSP) -> None:
+        """Make ``ksp`` a truncated CG where the iterative path preconditions with K₊.
+
+        Any other Krylov method the options ask for is run as PETSc has it.
+        """
+        self.truncated = None
+        if self.preconditioner is not self.matrix and ksp.getType() == PETSc.KSP.Type.CG:
+            self._ksp = ksp  # the context lives as long as this reference (truncated_cg)
+            self.truncated = truncated_cg(ksp)
 
     @property
     def replaceable(self) -> bool:
@@ -234,10 +252,17 @@ class NewtonDirections:
         finally:
             self.tangent_switch(False)
 
-    def solve(self, ksp: PETSc.KSP, y: PETSc.Vec) -> None:
-        """Solve :attr:`matrix` · y = residual, counting the Krylov iterations."""
-        self._solve(ksp, y)
-        self.replacement_linear_iterations += int(ksp.getIterationNumber())
+    def solve(self, ksp: PETSc.KSP, y: PETSc.Vec, *, replacement: bool = True) -> None:
+        """Solve :attr:`matrix` · y = residual (with the options in effect).
+
+        A replacement direction's solve preconditions with :attr:`matrix` itself and counts
+        its Krylov iterations; otherwise the preconditioning matrix is SNES's.
+        """
+        with self.options.in_effect():
+            ksp.setOperators(self.matrix, self.matrix if replacement else self.preconditioner)
+            ksp.solve(self.residual, y)
+        if replacement:
+            self.replacement_linear_iterations += int(ksp.getIterationNumber())
 
     def after_step(self, full_step: bool) -> None:
         """Choose the next tangent: the exact one after a full step."""

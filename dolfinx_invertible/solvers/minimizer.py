@@ -21,12 +21,10 @@ from dolfinx_invertible.solvers.convergence import ConvergenceTest, ScaledTolera
 from dolfinx_invertible.solvers.directions import NewtonDirections
 from dolfinx_invertible.solvers.line_search import EnergyLineSearch, SearchStop
 from dolfinx_invertible.solvers.monitors import IterationMonitors, NewtonIteration, StepCap
-from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
 from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX, MinimizerOptions
 from dolfinx_invertible.solvers.problem import EnergyProblem
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.step_limit import StepLimit
-from dolfinx_invertible.solvers.truncated_cg import truncated_cg
 
 __all__ = ["EnergyMinimizer"]
 
@@ -57,11 +55,8 @@ class EnergyMinimizer:
     so that scaling the stiffness, the density and the loads by one factor leaves the
     iterations unchanged.
 
-    Options are set in this order, later ones winning: our defaults (see
-    :data:`~dolfinx_invertible.solvers.options.DEFAULT_PETSC_OPTIONS` and
-    :func:`~dolfinx_invertible.solvers.options.linear_solver_options`), ``petsc_options``, then
-    options already in PETSc's database under ``options_prefix``, such as
-    ``-dolfinx_invertible_snes_monitor`` on the command line.
+    Options: our defaults, then ``petsc_options``, then those in PETSc's database under
+    ``options_prefix`` (the command line), later ones winning (:mod:`.options`).
 
     Parameters
     ----------
@@ -144,29 +139,20 @@ class EnergyMinimizer:
         self._x = problem.create_vector()
         self._residual = problem.create_vector()
         self._backup = problem.create_vector()
-        self._matrix = problem.create_matrix()
-        near_nullspace = rigid_body_near_nullspace(problem.u.function_space)
-        self._matrix.setNearNullSpace(near_nullspace)
-        # The iterative path preconditions CG on the exact tangent with the projected one.
-        self._preconditioner = self._matrix
-        if self.linear_solver == "iterative" and tangent_switch is not None:
-            self._preconditioner = problem.create_matrix()
-            self._preconditioner.setNearNullSpace(near_nullspace)
         self.tolerances = ScaledTolerances(
             problem,
             displacement_tolerance=displacement_tolerance,
             absolute_tolerance=self.options.absolute_tolerance,
             assemble_tangent=lambda: self.directions.assemble(
-                None, self._x, self._matrix, self._matrix
+                None, self._x, self.directions.matrix, self.directions.matrix
             ),
         )
-        self.directions = NewtonDirections(
+        self.directions = directions = NewtonDirections(
             problem,
-            self._matrix,
             self._residual,
+            self.options,
             tangent_switch=tangent_switch,
             blend_after=blend_after,
-            solve=self._solve_linear,
             assembled=self.tolerances.record_stiffness,
             tangent=tangent,
         )
@@ -183,13 +169,13 @@ class EnergyMinimizer:
         self.snes = PETSc.SNES().create(problem.comm)
         self.snes.setOptionsPrefix(options_prefix)
         self.snes.setFunction(problem.F, self._residual)
-        self.snes.setJacobian(self.directions.assemble, self._matrix, self._preconditioner)
+        self.snes.setJacobian(directions.assemble, directions.matrix, directions.preconditioner)
         self.snes.setLineSearchPreCheck(self._precheck)
         self.snes.setConvergenceTest(self._converged)
         self.snes.setConvergenceHistory(reset=True)
         self.snes.setMonitor(self._monitor)
         chosen = self.options.configure(self.snes)
-        self._choose_krylov_method()
+        directions.choose_krylov_method(self.snes.getKSP())
         self.line_search = "energy" if chosen == "basic" and problem.has_energy else chosen
 
     # -- public properties and observation ------------------------------------------------
@@ -230,20 +216,10 @@ class EnergyMinimizer:
         """Use further PETSc ``options`` (without prefix) for the duration, e.g. a longer cap."""
         try:
             with self.options.override(self.snes, options):
-                self._choose_krylov_method()
+                self.directions.choose_krylov_method(self.snes.getKSP())
                 yield
         finally:
-            self._choose_krylov_method()
-
-    def _choose_krylov_method(self) -> None:
-        # CG on the exact tangent with the projected one as preconditioning matrix stops at
-        # negative curvature (truncated CG); any other Krylov method the options ask for is run
-        # as PETSc has it.
-        ksp = self.snes.getKSP()
-        self.directions.truncated = None
-        if self._preconditioner is not self._matrix and ksp.getType() == PETSc.KSP.Type.CG:
-            self._ksp = ksp  # the context lives as long as this reference (truncated_cg)
-            self.directions.truncated = truncated_cg(ksp)
+            self.directions.choose_krylov_method(self.snes.getKSP())
 
     def escalate(self) -> bool:
         """Blend the tangents from the first projected iteration on, for good.
@@ -259,11 +235,6 @@ class EnergyMinimizer:
         return self.tolerances.absolute_tolerance()
 
     # -- SNES callbacks -------------------------------------------------------------------
-    def _solve_linear(self, ksp: PETSc.KSP, y: PETSc.Vec) -> None:
-        with self.options.in_effect():
-            ksp.setOperators(self._matrix, self._matrix)
-            ksp.solve(self._residual, y)
-
     def _stop(self, stop: SearchStop | None) -> None:
         if stop is not None and stop.converged:
             self._test.converge(stop.detail)
@@ -368,10 +339,9 @@ class EnergyMinimizer:
         ksp = self.snes.getKSP()
         try:
             self.problem.F(self.snes, self._x, self._residual)
-            self.directions.assemble(self.snes, self._x, self._matrix, self._preconditioner)
-            with self.options.in_effect():
-                ksp.setOperators(self._matrix, self._preconditioner)
-                ksp.solve(self._residual, direction)
+            directions = self.directions
+            directions.assemble(self.snes, self._x, directions.matrix, directions.preconditioner)
+            directions.solve(ksp, direction, replacement=False)
         finally:
             self._restore(u_vector)
         return int(ksp.getIterationNumber())

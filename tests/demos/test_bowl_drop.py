@@ -26,7 +26,7 @@ def test_bowl_drop_demo_checks_every_iterate_through_the_impact():
     demo = load_demo()
     summary = demo.drop(comm=MPI.COMM_WORLD, resolution=3, t_end=0.5)
     # 50 = t_end / dt = 0.5 / 0.01 steps, none cut. The cuts: regression pin: observed 0 on
-    # 2026-12-04 (a5eadce) with pytest tests/contact/test_contact_demo.py
+    # 2026-12-04 (a5eadce) with pytest tests/demos/test_bowl_drop.py
     assert summary["completed"] and summary["steps"] == 50
     # Every Newton iterate was looked at: at least one per step besides the initial ones.
     assert summary["iterates"] >= 2 * summary["steps"]

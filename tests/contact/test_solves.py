@@ -175,7 +175,7 @@ def test_dropped_cube_never_penetrates_at_any_newton_iterate():
     # 30 steps, each monitored at its start and after at least one Newton iteration (the cube
     # moves: no step starts at its solution), give 60; the impact takes more. Regression pin:
     # observed 109 on 2026-12-04 (a5eadce) with
-    # pytest tests/contact/test_contact_solves.py -k dropped_cube_never_penetrates
+    # pytest tests/contact/test_solves.py -k dropped_cube_never_penetrates
     assert seen["iterates"] > 60
     # It hit (t ≈ 0.14 s at 1.4 m/s: more than its weight) and was stopped.
     weight = DENSITY * 0.4**3 * GRAVITY
@@ -183,7 +183,7 @@ def test_dropped_cube_never_penetrates_at_any_newton_iterate():
     assert np.all(history[:, 0] > 0.0)
     assert history[:, 0].min() < term.barrier.distance
     # regression pin: observed 0 on 2026-12-04 (a5eadce) with
-    # pytest tests/contact/test_contact_solves.py -k dropped_cube_never_penetrates
+    # pytest tests/contact/test_solves.py -k dropped_cube_never_penetrates
     assert dynamics.controller.cuts == 0
 
 

@@ -159,7 +159,7 @@ def test_neo_hookean_load_steps_converge_with_energy_decrease():
     residual = case.problem.create_vector()
     for _, step_energies, result in per_step:
         # regression pin: observed 4 Newton iterations in each step on 2026-12-04 (a5eadce) with
-        # pytest tests/solvers/test_solver.py -k load_steps_converge_with_energy_decrease
+        # pytest tests/solvers/test_minimizer.py -k load_steps_converge_with_energy_decrease
         assert result.newton_iterations >= 2 and result.linear_iterations > 0
         # Monotone descent of Π over the Newton iterates, up to rounding.
         scale = max(abs(value) for value in step_energies)
@@ -276,7 +276,7 @@ def test_quadratic_convergence_near_solution():
     result = solve_at(case, solver, 1.0)
     history = np.array(result.residual_history)
     # Enough residuals for a pair inside the convergence region: regression pin: observed 5 on
-    # 2026-12-04 (a5eadce) with pytest tests/solvers/test_solver.py -k quadratic_convergence
+    # 2026-12-04 (a5eadce) with pytest tests/solvers/test_minimizer.py -k quadratic_convergence
     assert result.newton_iterations >= 3
     relative = history / history[0]
     # Pairs inside the convergence region and above the rounding floor of the residual.
