@@ -200,6 +200,7 @@ class NewtonDirections:
         if self.preconditioner is not self.matrix and ksp.getType() == PETSc.KSP.Type.CG:
             self._ksp = ksp  # the context lives as long as this reference (truncated_cg)
             self.truncated = truncated_cg(ksp)
+            self.truncated.operator = self.matrix
 
     @property
     def replaceable(self) -> bool:
@@ -220,8 +221,11 @@ class NewtonDirections:
     def assemble(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
         """SNES Jacobian callback: the exact tangent, or outside Newton's local phase projected.
 
-        A distinct ``P`` (the truncated CG's preconditioning matrix) gets the projected tangent.
+        On the iterative path SNES hands :attr:`preconditioner` as both matrices: the tangent
+        goes into :attr:`matrix` (the truncated CG's operator), the projected one into ``P``.
         """
+        if P.handle == self.preconditioner.handle and P.handle != self.matrix.handle:
+            A = self.matrix
         projected = self.tangent_switch is not None and not self._exact_next
         self.projected_now = projected
         self.kind = ProjectedTangent.kind if projected else self.tangent
@@ -259,10 +263,18 @@ class NewtonDirections:
         its Krylov iterations; otherwise the preconditioning matrix is SNES's.
         """
         with self.options.in_effect():
-            ksp.setOperators(self.matrix, self.matrix if replacement else self.preconditioner)
+            if replacement:
+                ksp.setOperators(self.matrix, self.matrix)
+            else:
+                ksp.setOperators(*self.snes_matrices)
             ksp.solve(self.residual, y)
         if replacement:
             self.replacement_linear_iterations += int(ksp.getIterationNumber())
+
+    @property
+    def snes_matrices(self) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """The (operator, preconditioning matrix) SNES hands its KSP."""
+        return (self.preconditioner, self.preconditioner)
 
     def after_step(self, full_step: bool) -> None:
         """Choose the next tangent: the exact one after a full step."""

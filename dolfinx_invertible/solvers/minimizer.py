@@ -169,7 +169,7 @@ class EnergyMinimizer:
         self.snes = PETSc.SNES().create(problem.comm)
         self.snes.setOptionsPrefix(options_prefix)
         self.snes.setFunction(problem.F, self._residual)
-        self.snes.setJacobian(directions.assemble, directions.matrix, directions.preconditioner)
+        self.snes.setJacobian(directions.assemble, *directions.snes_matrices)
         self.snes.setLineSearchPreCheck(self._precheck)
         self.snes.setConvergenceTest(self._converged)
         self.snes.setConvergenceHistory(reset=True)
@@ -340,7 +340,7 @@ class EnergyMinimizer:
         try:
             self.problem.F(self.snes, self._x, self._residual)
             directions = self.directions
-            directions.assemble(self.snes, self._x, directions.matrix, directions.preconditioner)
+            directions.assemble(self.snes, self._x, *directions.snes_matrices)
             directions.solve(ksp, direction, replacement=False)
         finally:
             self._restore(u_vector)

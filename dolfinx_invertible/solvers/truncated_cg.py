@@ -7,8 +7,11 @@ converges to the exact Newton direction: the iterative path uses the curvature w
 positive. At the first search direction with pᵀKp ≤ 0 the model has no minimiser in the Krylov
 space; the solver then solves with K₊ instead (the same preconditioner, no new setup), whose
 direction is always one of descent. A PETSc KSP of type ``python`` runs it, so SNES, the
-Eisenstat–Walker forcing terms and the options work as for any KSP: the operator is the exact
-tangent, the preconditioning matrix the projected one.
+Eisenstat–Walker forcing terms and the options work as for any KSP.
+
+The KSP's own operators are (K₊, K₊) and the exact tangent is handed to the context
+(:attr:`TruncatedCG.operator`): a multigrid preconditioner computes its finest level's residuals
+with the KSP's operator, and on K it would not be positive definite.
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ class TruncatedCG:
 
     Attributes
     ----------
+    operator
+        The exact tangent K; ``None`` uses the KSP's operator (then K₊ alone).
     outcome
         What the last solve returned: ``"exact"`` (CG on the exact tangent converged),
         ``"projected"`` (negative curvature: the projected tangent's direction) or ``"failed"``.
@@ -37,6 +42,7 @@ class TruncatedCG:
     """
 
     def __init__(self) -> None:
+        self.operator: PETSc.Mat | None = None
         self.outcome = "failed"
         self.curvature_iteration: int | None = None
         self._work: list[PETSc.Vec] | None = None
@@ -65,7 +71,8 @@ class TruncatedCG:
 
     def solve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
         """Solve with the operator, or past negative curvature with the preconditioning matrix."""
-        operator, projected = ksp.getOperators()
+        projected, _ = ksp.getOperators()
+        operator = projected if self.operator is None else self.operator
         self.curvature_iteration = None
         reason, iterations = self._cg(ksp, operator, b, x, truncate=True, start=0)
         if reason == _REASONS.CONVERGED_CG_NEG_CURVE:

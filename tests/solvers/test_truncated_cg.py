@@ -23,7 +23,8 @@ def _solve(operator: np.ndarray, preconditioner: np.ndarray, rhs: np.ndarray, pc
     x = b.duplicate()
     ksp = PETSc.KSP().create(comm=PETSc.COMM_SELF)
     context = truncated_cg(ksp)
-    ksp.setOperators(A, P)
+    ksp.setOperators(P, P)  # the preconditioner sees only the SPD matrix
+    context.operator = A
     ksp.getPC().setType(pc)
     ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=500)
     ksp.solve(b, x)
