@@ -13,6 +13,7 @@ material benchmark runs without DOLFINx.
 - ``material``: the constitutive kernels, numba against the NumPy reference of the tests
   (``tests/constitutive/numpy_reference.py``);
 - ``assembly``, ``points``, ``solve``, ``scaling``, ``compile``, ``memory``: the DOLFINx side;
+- ``scenes``: whole scenes at growing resolutions, both solver paths;
 - :mod:`.common`: cases, timing and reporting shared by the DOLFINx benchmarks;
 - :mod:`.threads`: one thread per process;
 - :mod:`.cold_start` and :mod:`.tangent_points`: scripts of their own, outside the command line
@@ -39,6 +40,8 @@ BENCHMARKS = {
     "scaling": "MPI speed-up of assembly and a Newton step, mpirun -n 1 vs -n 2",
     "compile": "cold and warm kernel compilation, and concurrent ranks on an empty numba cache",
     "memory": "peak resident memory of building and one Newton step of a large P1 problem",
+    "scenes": "scenes as their meshes grow: outcome, Newton and Krylov counts, time and memory "
+    "per step, on the direct and the iterative path",
 }
 
 #: This folder.

@@ -45,4 +45,7 @@ def restart_with_one_thread(argv: Sequence[str]) -> None:
     sys.stdout.flush()
     sys.stderr.flush()
     command = command_line(argv)
-    os.execv(command[0], command)
+    # Python's copy of the environment, not the process's: a process that has initialised MPI
+    # (as a singleton, on importing DOLFINx) carries Open MPI's variables for it, and an mpirun
+    # started from an image that inherited them fails in orte_init ("getting local rank").
+    os.execve(command[0], command, dict(os.environ))

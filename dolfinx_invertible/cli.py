@@ -99,7 +99,9 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     """Add the generic options to a scene's parser, with that scene's defaults in the help."""
     from dolfinx_invertible.scenes.parameters import (
         EXTENSION_NAMES,
+        LINEAR_SOLVERS,
         MODEL_NAMES,
+        PRECONDITIONERS,
         PROJECT_CHOICES,
         Parameters,
     )
@@ -172,6 +174,21 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
                                 dest="inversion_free", help="cap Newton steps so that no point's "
                                 "volume falls below FRACTION of its current value (default: "
                                 f"{default('inversion_free')})")  # fmt: skip
+    discretisation.add_argument("--linear-solver", choices=list(LINEAR_SOLVERS),
+                                dest="linear_solver", help="Newton's linear solves: a sparse "
+                                "factorisation (direct), conjugate gradients on the exact tangent "
+                                "preconditioned by AMG on the projected one, stopped at negative "
+                                "curvature (iterative), or auto: direct up to "
+                                "DIRECT_SOLVE_LIMIT unknowns (docs/guide.md) (default: "
+                                f"{default('linear_solver')})")  # fmt: skip
+    discretisation.add_argument("--pc", choices=list(PRECONDITIONERS), help="AMG of the "
+                                "iterative path: PETSc's GAMG or hypre's BoomerAMG (default: "
+                                f"{default('pc')})")  # fmt: skip
+    discretisation.add_argument("--petsc-option", action="append", default=[],
+                                metavar="NAME=VALUE", dest="petsc_option", help="a PETSc "
+                                "option of the solver, without prefix or dash, e.g. "
+                                "ksp_rtol=1e-8 or snes_monitor= (repeatable; -NAME VALUE with the "
+                                "dolfinx_invertible_ prefix works too)")  # fmt: skip
     output = subparser.add_argument_group("output")
     output.add_argument("--out", type=Path, metavar="DIR", help=f"output directory (default: "
                         f"results/{scene.name})")  # fmt: skip
@@ -215,6 +232,20 @@ def _petsc_options(extra: Sequence[str]) -> dict[str, str | None]:
     return options
 
 
+def _named_options(given: Sequence[str]) -> dict[str, str | None]:
+    """Parse ``NAME=VALUE`` (``NAME=`` or ``NAME`` for a flag) into prefixed solver options."""
+    options: dict[str, str | None] = {}
+    for item in given:
+        name, _, value = item.partition("=")
+        name = name.strip().lstrip("-")
+        if not name:
+            raise ValueError(f"--petsc-option needs NAME=VALUE, got {item!r}")
+        if not name.startswith(_PREFIX):
+            name = _PREFIX + name
+        options[name] = value or None
+    return options
+
+
 def _quiet_libraries(verbose: bool) -> None:
     """Silence FFCx/cffi build logs and numba warnings unless asked for."""
     if verbose:
@@ -248,6 +279,7 @@ def _run(arguments: argparse.Namespace) -> int:
     try:
         parameters = _parameters(scene, arguments)
         petsc = _petsc_options(arguments.petsc)
+        petsc.update(_named_options(arguments.petsc_option))
         _check_combination(parameters, petsc, comm)
         output = arguments.out or Path("results") / scene.name
         from dolfinx_invertible.scenes.runner import run_scene

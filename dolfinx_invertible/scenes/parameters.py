@@ -33,6 +33,12 @@ MODEL_NAMES = {
 }
 #: Command-line extension names.
 EXTENSION_NAMES = {"none": None, "c1": C1, "c2": C2, "ife": IFE}
+#: ``--linear-solver`` choices (the solvers' ``LINEAR_SOLVERS``; kept here so that the command
+#: line's parser does not load PETSc).
+LINEAR_SOLVERS = ("auto", "direct", "iterative")
+#: ``--pc`` choices: the preconditioners of the iterative path.
+PRECONDITIONERS = ("gamg", "hypre")
+
 #: ``--project`` choices and the value HyperelasticProblem takes.
 PROJECT_CHOICES = {"auto": "auto", "yes": True, "no": False}
 
@@ -83,6 +89,11 @@ class Parameters:
     elastic
         How the elastic energy is assembled: ``"kernels"`` (this package) or ``"ufl"``
         (DOLFINx's own route: plain Neo-Hookean in UFL, compiled by FFCx).
+    linear_solver
+        ``"auto"``, ``"direct"`` or ``"iterative"`` (see
+        :func:`~dolfinx_invertible.solvers.options.linear_solver_options`).
+    pc
+        Preconditioner of the iterative path: ``"gamg"`` or ``"hypre"``.
     """
 
     model: str = "neo-hookean"
@@ -105,6 +116,8 @@ class Parameters:
     mesh: str = "cube"
     dimension: int = 3
     elastic: str = "kernels"
+    linear_solver: str = "auto"
+    pc: str = "gamg"
 
     def validate(self) -> None:
         """Raise ``ValueError`` with the option name for any value outside its range."""
@@ -143,6 +156,13 @@ class Parameters:
             raise ValueError(f"--dimension must be 2 or 3, got {self.dimension!r}")
         if self.elastic not in ("kernels", "ufl"):
             raise ValueError(f"--elastic must be kernels or ufl, got {self.elastic!r}")
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(
+                f"--linear-solver must be one of {', '.join(LINEAR_SOLVERS)}, "
+                f"got {self.linear_solver!r}"
+            )
+        if self.pc not in PRECONDITIONERS:
+            raise ValueError(f"--pc must be one of {', '.join(PRECONDITIONERS)}, got {self.pc!r}")
         if self.elastic == "ufl" and (self.model != "neo-hookean" or self.extension != "none"):
             raise ValueError(
                 "--elastic ufl (DOLFINx's own route) is plain Neo-Hookean only: use --model "

@@ -222,6 +222,8 @@ def run_scene(
     if parameters.inversion_free is not None:
         options.setdefault("inversion_free", parameters.inversion_free)
     options.setdefault("elastic", parameters.elastic)
+    options.setdefault("linear_solver", parameters.linear_solver)
+    options.setdefault("pc", parameters.pc)
     options.update(problem_options or {})
     terms, limits = scene.terms(u), scene.step_limits(u)
     if terms:

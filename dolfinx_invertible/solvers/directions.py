@@ -230,6 +230,8 @@ class NewtonDirections:
         self.projected_now = projected
         self.kind = ProjectedTangent.kind if projected else self.tangent
         self.replacement_linear_iterations = 0
+        if self.truncated is not None:
+            self.truncated.blend = self._blending()
         if projected:
             self.tangent_switch(True)
         try:
@@ -288,11 +290,15 @@ class NewtonDirections:
         where the exact tangent was factorised with a known inertia, it was definite.
         """
         reason = ksp.getConvergedReason()
-        if self.truncated is not None and not self.projected_now:
-            if self.truncated.outcome == ProjectedTangent.kind:
-                # Negative curvature: the truncated CG solved with the projected tangent.
+        truncated = self.truncated
+        if truncated is not None and not self.projected_now:
+            if truncated.outcome in (ProjectedTangent.kind, BlendedTangent.kind):
+                # Negative curvature: the truncated CG solved with the projected tangent or a
+                # definite blend instead.
                 self.projected_now = True
-                self.kind = ProjectedTangent.kind
+                self.kind = truncated.outcome
+                if truncated.outcome == BlendedTangent.kind:
+                    self.blended_iterations += 1
         if reason < 0:
             return False, f"the linear solve failed ({ksp_reason_name(reason)})"
         if not has_energy:
@@ -310,13 +316,13 @@ class NewtonDirections:
         if self.projected_now:
             self.projected_iterations += 1
 
+    def _blending(self) -> bool:
+        """Whether the current iteration blends: after ``blend_after`` projected iterations."""
+        return self.blend_after is not None and self.projected_iterations >= self.blend_after
+
     def replace(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
         """Compute the direction at ``x`` again with the strategy in effect."""
-        blend = (
-            self.blend_after is not None
-            and self.projected_iterations >= self.blend_after
-            and has_inertia(ksp)
-        )
+        blend = self._blending() and has_inertia(ksp)
         strategy = self._blended if blend else self._projected
         kind = strategy.direction(self, x, y, ksp)
         self.projected_iterations += 1
@@ -328,12 +334,13 @@ class NewtonDirections:
     def escalate(self, ksp: PETSc.KSP) -> bool:
         """Blend from the first projected iteration on, for good; ``False`` if nothing changes.
 
-        Nothing changes without a tangent switch, without inertia from the linear solver (an
-        iterative one), or when blending from the first iteration already.
+        Nothing changes without a tangent switch, without a definiteness test (the inertia of
+        a factorisation, or the truncated CG's curvature), or when blending from the first
+        iteration already.
         """
         if self.tangent_switch is None or self.blend_after == 0:
             return False
-        if not has_inertia(ksp):
+        if self.truncated is None and not has_inertia(ksp):
             return False
         self.blend_after = 0
         return True

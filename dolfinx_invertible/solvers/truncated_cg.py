@@ -22,9 +22,16 @@ import weakref
 
 from petsc4py import PETSc
 
-__all__ = ["TruncatedCG", "truncated_cg"]
+__all__ = ["BLEND_MARGIN", "MAX_RESTARTS", "SMALLEST_WEIGHT", "TruncatedCG", "truncated_cg"]
 
 _REASONS = PETSc.KSP.ConvergedReason
+#: A blend's weight is this share of the largest one the direction of negative curvature allows.
+BLEND_MARGIN = 7.0 / 8.0
+#: Below this weight the blend is the projected tangent (the smallest rung of the direct path's
+#: ladder, :data:`~dolfinx_invertible.solvers.directions.BLEND_WEIGHTS`).
+SMALLEST_WEIGHT = 1.0 / 64.0
+#: Restarts with a lower weight before the projected tangent is taken.
+MAX_RESTARTS = 6
 
 
 class TruncatedCG:
@@ -34,15 +41,23 @@ class TruncatedCG:
     ----------
     operator
         The exact tangent K; ``None`` uses the KSP's operator (then K₊ alone).
+    blend
+        Past negative curvature, solve with the blend w K + (1 − w) K₊ of the largest weight
+        that the directions met allow (restarting from the iterate reached), rather than with
+        K₊ alone.
+    weight
+        The weight w of the last solve's direction: 1 exact, 0 projected.
     outcome
         What the last solve returned: ``"exact"`` (CG on the exact tangent converged),
-        ``"projected"`` (negative curvature: the projected tangent's direction) or ``"failed"``.
+        ``"blended"``, ``"projected"`` or ``"failed"``.
     curvature_iteration
         The CG iteration at which negative curvature was met in the last solve, else ``None``.
     """
 
     def __init__(self) -> None:
         self.operator: PETSc.Mat | None = None
+        self.blend = False
+        self.weight = 1.0
         self.outcome = "failed"
         self.curvature_iteration: int | None = None
         self._work: list[PETSc.Vec] | None = None
@@ -66,55 +81,110 @@ class TruncatedCG:
 
     def _vectors(self, b: PETSc.Vec) -> list[PETSc.Vec]:
         if self._work is None or self._work[0].getSizes() != b.getSizes():
-            self._work = [b.duplicate() for _ in range(4)]
+            self._work = [b.duplicate() for _ in range(5)]
         return self._work
 
     def solve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """Solve with the operator, or past negative curvature with the preconditioning matrix."""
+        """Solve with the exact tangent, a definite blend, or the projected tangent."""
         projected, _ = ksp.getOperators()
-        operator = projected if self.operator is None else self.operator
+        exact = projected if self.operator is None else self.operator
+        pc = ksp.getPC()
+        rtol, atol, _, max_it = ksp.getTolerances()
+        _, z, _, _, _ = self._vectors(b)
+        pc.apply(b, z)
+        bz = b.dot(z)
         self.curvature_iteration = None
-        reason, iterations = self._cg(ksp, operator, b, x, truncate=True, start=0)
-        if reason == _REASONS.CONVERGED_CG_NEG_CURVE:
-            self.curvature_iteration = iterations
-            reason, iterations = self._cg(ksp, projected, b, x, truncate=False, start=iterations)
-            self.outcome = "projected" if reason > 0 else "failed"
-            if reason > 0:
-                reason = _REASONS.CONVERGED_CG_NEG_CURVE
+        self.weight = 1.0
+        if not (math.isfinite(bz) and bz >= 0.0):
+            self._finish(ksp, _REASONS.DIVERGED_INDEFINITE_PC, 0, "failed")
+            return
+        target = max(rtol * math.sqrt(bz), atol)
+        x.set(0.0)
+        weight, iterations, restarts = 1.0, 0, 0
+        while True:
+            reason, iterations, limit = self._cg(
+                ksp, exact, projected, weight, b, x, target, iterations, max_it
+            )
+            if reason != _REASONS.CONVERGED_CG_NEG_CURVE:
+                break
+            if self.curvature_iteration is None:
+                self.curvature_iteration = iterations
+            restarts += 1
+            weight = min(weight, limit) * BLEND_MARGIN if self.blend else 0.0
+            if weight < SMALLEST_WEIGHT or restarts > MAX_RESTARTS:
+                weight = 0.0
+                x.set(0.0)
+        self.weight = weight
+        if reason < 0:
+            outcome = "failed"
+        elif weight == 1.0:
+            outcome = "exact"
         else:
-            self.outcome = "exact" if reason > 0 else "failed"
+            outcome = "blended" if weight > 0.0 else "projected"
+            reason = _REASONS.CONVERGED_CG_NEG_CURVE
+        self._finish(ksp, reason, iterations, outcome)
+
+    def _finish(self, ksp: PETSc.KSP, reason: int, iterations: int, outcome: str) -> None:
+        self.outcome = outcome
         ksp.setIterationNumber(iterations)
         ksp.setConvergedReason(reason)
 
-    def _cg(self, ksp, operator, b, x, *, truncate: bool, start: int) -> tuple[int, int]:
-        """Preconditioned CG from x = 0; return (reason, iterations counted from ``start``)."""
-        r, z, p, q = self._vectors(b)
+    def _cg(self, ksp, exact, projected, weight, b, x, target, start, max_it):
+        """Preconditioned CG on w K + (1 − w) K₊ from ``x``; return (reason, iterations, w*).
+
+        Stops at a search direction p of non-positive curvature unless w = 0 (then K₊ alone,
+        which has none: that is a failure); w* = pᵀK₊p / (pᵀK₊p − pᵀKp) is the largest weight
+        that direction allows.
+        """
+        r, z, p, q, k = self._vectors(b)
         pc = ksp.getPC()
-        rtol, atol, _, max_it = ksp.getTolerances()
-        x.set(0.0)
-        b.copy(r)
+
+        def apply(vector, result) -> tuple[float, float]:
+            # Returns (pᵀK p, pᵀK₊ p) where computed, for the weight that keeps p definite.
+            if weight == 0.0:
+                projected.mult(vector, result)
+                return math.nan, vector.dot(result)
+            exact.mult(vector, result)
+            if weight == 1.0:
+                return vector.dot(result), math.nan
+            projected.mult(vector, k)
+            exact_curvature, projected_curvature = vector.dot(result), vector.dot(k)
+            result.scale(weight)
+            result.axpy(1.0 - weight, k)
+            return exact_curvature, projected_curvature
+
+        if x.norm(PETSc.NormType.NORM_INFINITY) > 0.0:
+            apply(x, q)
+            b.copy(r)
+            r.axpy(-1.0, q)
+        else:
+            b.copy(r)
         pc.apply(r, z)
         rz = r.dot(z)
+        iteration = start
         if not (math.isfinite(rz) and rz >= 0.0):
-            return _REASONS.DIVERGED_INDEFINITE_PC, start
+            return _REASONS.DIVERGED_INDEFINITE_PC, iteration, math.nan
         norm = math.sqrt(rz)
-        target = max(rtol * norm, atol)
         ksp.setResidualNorm(norm)
         ksp.logConvergenceHistory(norm)
-        ksp.monitor(start, norm)
+        ksp.monitor(iteration, norm)
         if norm <= target:
-            return _REASONS.CONVERGED_ATOL, start
+            return _REASONS.CONVERGED_RTOL, iteration, math.nan
         z.copy(p)
-        iteration = start
-        for _ in range(max_it):
-            operator.mult(p, q)
+        while iteration < max_it:
+            exact_curvature, projected_curvature = apply(p, q)
             curvature = p.dot(q)
             if not math.isfinite(curvature):
-                return _REASONS.DIVERGED_NANORINF, iteration
+                return _REASONS.DIVERGED_NANORINF, iteration, math.nan
             if curvature <= 0.0:
-                if truncate:
-                    return _REASONS.CONVERGED_CG_NEG_CURVE, iteration
-                return _REASONS.DIVERGED_INDEFINITE_MAT, iteration
+                if weight == 0.0:
+                    return _REASONS.DIVERGED_INDEFINITE_MAT, iteration, math.nan
+                if math.isnan(projected_curvature):
+                    projected.mult(p, k)
+                    projected_curvature = p.dot(k)
+                drop = projected_curvature - exact_curvature
+                limit = projected_curvature / drop if drop > 0.0 else 0.0
+                return _REASONS.CONVERGED_CG_NEG_CURVE, iteration, limit
             alpha = rz / curvature
             x.axpy(alpha, p)
             r.axpy(-alpha, q)
@@ -122,16 +192,16 @@ class TruncatedCG:
             rz_next = r.dot(z)
             iteration += 1
             if not (math.isfinite(rz_next) and rz_next >= 0.0):
-                return _REASONS.DIVERGED_INDEFINITE_PC, iteration
+                return _REASONS.DIVERGED_INDEFINITE_PC, iteration, math.nan
             norm = math.sqrt(rz_next)
             ksp.setResidualNorm(norm)
             ksp.logConvergenceHistory(norm)
             ksp.monitor(iteration, norm)
             if norm <= target:
-                return _REASONS.CONVERGED_RTOL, iteration
+                return _REASONS.CONVERGED_RTOL, iteration, math.nan
             p.aypx(rz_next / rz, z)
             rz = rz_next
-        return _REASONS.DIVERGED_MAX_IT, iteration
+        return _REASONS.DIVERGED_MAX_IT, iteration, math.nan
 
 
 # KSPs whose type is ``python``: PETSc must drop their Python contexts while the interpreter and

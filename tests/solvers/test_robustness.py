@@ -152,9 +152,11 @@ def test_injected_linear_solver_failure_is_cut_and_reported_as_linear_solve():
     assert "linear solve failed" in str(error)
     assert f"KSP {error.result.linear_reason_name}" in str(error)
     # Retried: the first attempt and one per cut, each a smaller step. Every attempt fails (one
-    # Krylov iteration cannot converge) and an iterative linear solver offers no escalation
-    # (EnergyMinimizer.escalate), so the cuts run out: max_cuts + 1 = 4 failed attempts.
-    assert dynamics.controller.cuts == 4
+    # Krylov iteration cannot converge): the cuts run out after max_cuts + 1 = 4 failed
+    # attempts, the solver escalates to blended tangents once (the truncated CG's curvature
+    # test) with a fresh budget, and those 4 attempts fail too.
+    assert dynamics.controller.cuts == 8 and dynamics.controller.escalations == 1
+    assert "blended tangents" in str(error)
     assert dynamics.time == 0.0 and np.all(u.x.array == 0.0)
 
 

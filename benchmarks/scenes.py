@@ -1,0 +1,212 @@
+"""Scenes as their meshes grow: outcome, Newton and Krylov counts, cost and memory per step.
+
+``python -m dolfinx_invertible bench scenes [--scenes collapse scatter compress-block
+stretch-bar] [--resolutions 8 16 24 32 48] [--ranks 1 2] [--paths direct iterative]
+[--steps N] [--json PATH]`` runs every scene at every resolution on every rank count and
+solver path (``--linear-solver``), each run a child process under ``mpirun -n`` with the scene's
+defaults otherwise, and writes one row per run: cells, unknowns, solver path, outcome, steps,
+Newton iterations per step, Krylov iterations per Newton iteration, seconds per step, seconds per
+step per 10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each
+run after N time steps (t_end = N dt; a relaxation then ends "not at rest" unless it got there),
+for sizes whose full run takes too long; the table says which rows were cut short.
+``--single SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs).
+
+Targets (docs/performance.md, "Scale"): the outcome at every resolution equals resolution 8's
+on both paths; Newton iterations per step at resolution 48 within 1.5× of resolution 8's;
+Krylov iterations per Newton iteration within 2× across resolutions; seconds per step per
+unknown at resolution 48 within 2× of resolution 16's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+
+from benchmarks import common
+
+SCENES = ("collapse", "scatter", "compress-block", "stretch-bar")
+RESOLUTIONS = (8, 16, 24, 32, 48)
+PATHS = ("direct", "iterative")
+
+
+def measure(scene_name: str, resolution: int, path: str, steps: int | None, pc: str) -> dict:
+    """Run one scene on ``MPI.COMM_WORLD`` (collective); a JSON-ready row."""
+    from mpi4py import MPI
+
+    from dolfinx_invertible.scenes import Parameters, RunObserver, get_scene, run_scene
+
+    comm = MPI.COMM_WORLD
+    scene = get_scene(scene_name)
+    values = {**scene.defaults, "resolution": resolution, "linear_solver": path, "pc": pc}
+    if steps is not None:
+        if scene.dynamic:
+            values["t_end"] = steps * values.get("dt", Parameters.dt)
+        else:
+            values["steps"] = steps
+    parameters = Parameters(**values)
+
+    class Timer(RunObserver):
+        def __init__(self):
+            self.started = 0.0
+            self.cells = 0
+            self.attempts = 0
+
+        def start(self, run) -> None:
+            self.started = time.perf_counter()
+            self.cells = run.mesh.topology.index_map(run.mesh.topology.dim).size_global
+
+        def attempt(self, run, attempt) -> None:
+            self.attempts += 1
+
+    timer = Timer()
+    summary = run_scene(scene, parameters, output=None, comm=comm, observers=[timer])
+    stepping_seconds = time.perf_counter() - timer.started
+    peak = comm.allreduce(common.peak_rss_bytes(), op=MPI.MAX)
+    steps_taken = max(summary["steps"], 1)
+    newton = summary["newton_iterations"]["total"]
+    return {
+        "scene": scene_name,
+        "resolution": resolution,
+        "ranks": comm.size,
+        "path": path,
+        "pc": pc,
+        "cells": timer.cells,
+        "unknowns": summary["dofs"],
+        "outcome": summary["outcome"],
+        "completed": summary["completed"],
+        "cut_short": steps is not None,
+        "steps": summary["steps"],
+        "attempts": timer.attempts,
+        "cuts": summary["stepping"].get("cuts"),
+        "escalations": summary["stepping"].get("escalations"),
+        "newton": newton,
+        "krylov": summary["linear_iterations"],
+        "newton_per_step": newton / steps_taken,
+        "krylov_per_newton": summary["linear_iterations"] / max(newton, 1),
+        "stepping_seconds": stepping_seconds,
+        "seconds_per_step": stepping_seconds / steps_taken,
+        "seconds_per_step_per_1e5": stepping_seconds / steps_taken / (summary["dofs"] / 1e5),
+        "peak_rss_mib": peak / 2**20,
+        "reason": summary.get("reason"),
+    }
+
+
+def run(scenes, resolutions, ranks, paths, steps: int | None, pc: str, timeout: float) -> dict:
+    """Run every combination in a child process each; return the report."""
+    report: dict = {"benchmark": "scenes", "machine": common.machine(), "rows": []}
+    with tempfile.TemporaryDirectory(prefix="bench_scenes_") as directory:
+        for scene in scenes:
+            for resolution in resolutions:
+                for count in ranks:
+                    for path in paths:
+                        report["rows"].append(
+                            _child(directory, scene, resolution, count, path, steps, pc, timeout)
+                        )
+                        print(_row_text(report["rows"][-1]), flush=True)
+    common.record_load_after(report)
+    return report
+
+
+def _child(directory, scene, resolution, count, path, steps, pc, timeout) -> dict:
+    output = os.path.join(directory, f"{scene}-{resolution}-{count}-{path}.json")
+    arguments = ["--worker", "--single", f"{scene}:{resolution}:{count}:{path}", "--pc", pc]
+    arguments += ["--json", output]
+    if steps is not None:
+        arguments += ["--steps", str(steps)]
+    command = common.bench_command("scenes", arguments, count)
+    try:
+        wall = common.run_child(command, common.child_environment(), timeout)
+    except Exception as error:  # a run that breaks is a row of the table, not its end
+        return {
+            "scene": scene,
+            "resolution": resolution,
+            "ranks": count,
+            "path": path,
+            "outcome": "error",
+            "reason": str(error)[-500:],
+        }
+    with open(output, encoding="utf-8") as file:
+        row = json.load(file)
+    row["process_wall_seconds"] = wall
+    return row
+
+
+#: (key, heading, width, format of a value) of the table's columns.
+_COLUMNS = (
+    ("scene", "scene", 15, "<"),
+    ("resolution", "res", 4, ">"),
+    ("ranks", "np", 3, ">"),
+    ("path", "path", 10, ">"),
+    ("cells", "cells", 9, ">"),
+    ("unknowns", "unknowns", 9, ">"),
+    ("outcome", "outcome", 17, ">"),
+    ("steps", "steps", 6, ">"),
+    ("newton_per_step", "Newton/st", 9, ">.2f"),
+    ("krylov_per_newton", "Kryl/Newt", 9, ">.1f"),
+    ("seconds_per_step", "s/step", 9, ">.2f"),
+    ("seconds_per_step_per_1e5", "s/st/1e5", 9, ">.2f"),
+    ("peak_rss_mib", "MiB/rank", 8, ">.0f"),
+)
+
+
+def _row_text(row: dict) -> str:
+    parts = []
+    for key, _, width, form in _COLUMNS:
+        value = row.get(key)
+        parts.append(("—" if value is None else format(value, form)).rjust(width))
+    text = " ".join(parts)
+    if row.get("cut_short"):
+        text += "  (cut short)"
+    return text
+
+
+def table(report: dict) -> str:
+    """Return the report as a table (one line per run)."""
+    header = " ".join(heading.rjust(width) for _, heading, width, _ in _COLUMNS)
+    lines = [f"scenes benchmark, {common.load_text(report)}", header]
+    lines += [_row_text(row) for row in report["rows"]]
+    return "\n".join(lines)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Command-line options of ``bench scenes``."""
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), help="scenes to run")
+    parser.add_argument(
+        "--resolutions", type=int, nargs="+", default=[8, 16], help="resolutions (default 8 16)"
+    )
+    parser.add_argument("--ranks", type=int, nargs="+", default=[2], help="rank counts (default 2)")
+    parser.add_argument(
+        "--paths", nargs="+", default=list(PATHS), choices=PATHS, help="linear solver paths"
+    )
+    parser.add_argument("--pc", default="gamg", choices=("gamg", "hypre"), help="AMG (iterative)")
+    parser.add_argument("--steps", type=int, help="stop every run after this many steps")
+    parser.add_argument(
+        "--single", metavar="SCENE:RESOLUTION:RANKS:PATH", help="run this one row only"
+    )
+    parser.add_argument("--timeout", type=float, default=6 * 3600.0, help="seconds per run")
+    parser.add_argument("--json", help="write the JSON report here (default: stdout)")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+
+
+def command(arguments: argparse.Namespace) -> int:
+    """Run ``bench scenes`` (or, with ``--worker``, one row under mpirun)."""
+    if arguments.worker:
+        from mpi4py import MPI
+
+        scene, resolution, _, path = arguments.single.split(":")
+        row = measure(scene, int(resolution), path, arguments.steps, arguments.pc)
+        if MPI.COMM_WORLD.rank == 0:
+            with open(arguments.json, "w", encoding="utf-8") as file:
+                json.dump(row, file)
+        return 0
+    if arguments.single:
+        scene, resolution, ranks, path = arguments.single.split(":")
+        selection = ([scene], [int(resolution)], [int(ranks)], [path])
+    else:
+        selection = (arguments.scenes, arguments.resolutions, arguments.ranks, arguments.paths)
+    report = run(*selection, arguments.steps, arguments.pc, arguments.timeout)
+    common.emit(report, table(report), arguments.json)
+    return 0
