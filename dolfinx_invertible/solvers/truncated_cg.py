@@ -26,7 +26,7 @@ __all__ = ["BLEND_MARGIN", "MAX_RESTARTS", "SMALLEST_WEIGHT", "TruncatedCG", "tr
 
 _REASONS = PETSc.KSP.ConvergedReason
 #: A blend's weight is this share of the largest one the direction of negative curvature allows.
-BLEND_MARGIN = 7.0 / 8.0
+BLEND_MARGIN = 1.0 - 1.0 / 512.0
 #: Below this weight the blend is the projected tangent (the smallest rung of the direct path's
 #: ladder, :data:`~dolfinx_invertible.solvers.directions.BLEND_WEIGHTS`).
 SMALLEST_WEIGHT = 1.0 / 64.0
