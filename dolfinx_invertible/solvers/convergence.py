@@ -140,6 +140,15 @@ class ConvergenceTest:
         self.tolerance = 0.0
         self._initial_norm = math.inf
 
+    def target(self, rtol: float) -> float:
+        """Return the residual norm the solve must reach, ``max(atol, rtol · ‖r₀‖)``.
+
+        0 before the solve has started.
+        """
+        if not math.isfinite(self._initial_norm):
+            return 0.0
+        return max(self.tolerance, rtol * self._initial_norm)
+
     def fail(self, reason: int, stage: str, detail: str) -> None:
         """End the solve as failed at ``stage`` (one of the stages of a SolveResult)."""
         self.failure = (reason, stage, detail)

@@ -164,6 +164,7 @@ class EnergyMinimizer:
             watchdog_steps=watchdog_steps,
         )
         self._test = ConvergenceTest(self.tolerances)
+        directions.target = lambda: self._test.target(self.snes.getTolerances()[0])
         self._monitors = IterationMonitors()
 
         self.snes = PETSc.SNES().create(problem.comm)

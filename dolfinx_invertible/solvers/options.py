@@ -44,10 +44,12 @@ DEFAULT_PETSC_OPTIONS: dict[str, Any] = {
 LINEAR_SOLVERS = ("auto", "direct", "iterative")
 
 #: Global number of unknowns up to which ``linear_solver="auto"`` factorises (3D; 2D allows 4×).
-#: Below it a sparse direct solve is as fast as CG + AMG on this project's problems and immune to
-#: what slows or breaks AMG: near-incompressibility (λ/μ of 500 and more), P2 elements,
-#: the indefinite exact tangent and an AMG preconditioner that stops being positive definite.
-DIRECT_SOLVE_LIMIT = 60_000
+#: Measured on the collapsed cube, 2 ranks (docs/performance.md, "Scale"): at 2 187 unknowns a
+#: step costs 0.18 s direct and 0.15 s iterative, at 6 591 1.53 s against 0.51 s, at 14 739
+#: 6.1 s against 1.6 s (MUMPS's numeric factorisation is 91 % of the direct path's time). Below
+#: the limit the direct solve costs about as much and is immune to what slows AMG:
+#: near-incompressibility (λ/μ of 500 and more) and P2 elements.
+DIRECT_SOLVE_LIMIT = 5_000
 
 
 def _direct_solver_package(comm_size: int) -> str | None:
@@ -101,7 +103,10 @@ def linear_solver_options(
             # minimiser reads it to tell an indefinite exact tangent).
             options["mat_mumps_icntl_24"] = 1
         return options
-    options: dict[str, Any] = {"ksp_type": "cg", "ksp_rtol": 1.0e-10, "pc_type": pc}
+    # Each Newton system to 1e-6: on the collapse at 24³ × 6 cells the same Newton iterations
+    # as with 1e-10 and 41 % fewer Krylov iterations (26 % less time); PETSc's Eisenstat-Walker
+    # forcing (rtol from 0.3) took more Newton iterations and over 8 times as long.
+    options: dict[str, Any] = {"ksp_type": "cg", "ksp_rtol": 1.0e-6, "pc_type": pc}
     if pc == "hypre":
         options["pc_hypre_type"] = "boomeramg"
     if pc == "gamg":
