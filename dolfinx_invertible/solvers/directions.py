@@ -231,7 +231,8 @@ class NewtonDirections:
         """
         if P.handle == self.preconditioner.handle and P.handle != self.matrix.handle:
             A = self.matrix
-        if snes is not None and self.options.linear_solver == "iterative":
+        iterative = self.options.linear_solver == "iterative"
+        if snes is not None and iterative and not self.options.fixed_krylov_tolerance:
             self.force(snes)
         projected = self.tangent_switch is not None and not self._exact_next
         self.projected_now = projected
@@ -261,9 +262,10 @@ class NewtonDirections:
         """Set this iteration's Krylov tolerance: η = min(η_max, τ / (10 ‖r‖)).
 
         Inexact Newton with τ the residual the Newton iteration must reach: far from a solution
-        a loose solve (η_max, the options' ``ksp_rtol``) gives as good a step for less; close to
-        it the linear residual is held below a tenth of τ, so the last step is as exact as it
-        needs to be to converge and the energy still decreases to its rounding.
+        a loose solve (η_max = 1e-6, the default ``ksp_rtol``) gives as good a step for less;
+        close to it the linear residual is held below a tenth of τ, so the last step is as
+        exact as it needs to be to converge and the energy still decreases to its rounding.
+        Not applied where the caller or the command line fixes ``ksp_rtol``.
         """
         norm = float(snes.getFunctionNorm())
         forcing = self.largest_forcing

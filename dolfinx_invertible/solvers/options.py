@@ -174,6 +174,8 @@ class MinimizerOptions:
         given = {name.lstrip("-"): value for name, value in (petsc_options or {}).items()}
         self.values.update(given)
         database = PETSc.Options(prefix)
+        #: Whether the caller or the database fixes the Krylov tolerance (no forcing terms then).
+        self.fixed_krylov_tolerance = "ksp_rtol" in given or database.hasName("ksp_rtol")
         atol = database.getReal("snes_atol") if database.hasName("snes_atol") else None
         atol = given.get("snes_atol") if atol is None else atol
         self.absolute_tolerance = None if atol is None else float(atol)
