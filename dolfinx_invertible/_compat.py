@@ -17,6 +17,7 @@ import dolfinx  # noqa: E402  (after the wheel's MPI)
 import dolfinx.fem
 import dolfinx.io
 import numpy as np
+from petsc4py import PETSc
 
 __all__ = [
     "DOLFINX_VERSION",
@@ -28,6 +29,8 @@ __all__ = [
     "evaluate_expression",
     "xdmf_file",
     "XDMF_XINCLUDE_NAMESPACE",
+    "KSP_CONVERGED_NEGATIVE_CURVATURE",
+    "SNES_DIVERGED_NOT_FINITE",
 ]
 
 DOLFINX_VERSION = tuple(int(part) for part in dolfinx.__version__.split(".")[:2])
@@ -55,6 +58,28 @@ def _kernel_signature():
 
 
 KERNEL_SIGNATURE = _kernel_signature()
+
+
+def _reason(reasons, *names: str) -> int:
+    for name in names:
+        if hasattr(reasons, name):
+            return getattr(reasons, name)
+    raise AttributeError(f"petsc4py has none of {', '.join(names)} in {reasons.__name__}")
+
+
+# petsc4py renames converged reasons with PETSc (the DOLFINx 0.9 and 0.11 stacks ship newer
+# PETSc than bookworm's 3.18); the values keep their meaning.
+#: CG stopped at a direction of negative curvature (``CONVERGED_CG_NEG_CURVE`` up to PETSc 3.18).
+KSP_CONVERGED_NEGATIVE_CURVATURE = _reason(
+    PETSc.KSP.ConvergedReason, "CONVERGED_NEG_CURVE", "CONVERGED_CG_NEG_CURVE"
+)
+#: The residual is not finite (``DIVERGED_FNORM_NAN`` up to PETSc 3.22).
+SNES_DIVERGED_NOT_FINITE = _reason(
+    PETSc.SNES.ConvergedReason,
+    "DIVERGED_FUNCTION_NANORINF",
+    "DIVERGED_FNORM_NANORINF",
+    "DIVERGED_FNORM_NAN",
+)
 
 
 def vector_function_space(mesh, degree: int = 1, family: str = "Lagrange"):

@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 from petsc4py import PETSc
 
+from dolfinx_invertible import _compat
 from dolfinx_invertible.fem.checks import mean_cell_size
 
 __all__ = ["ConvergenceTest", "ScaledTolerances"]
@@ -140,15 +141,6 @@ class ConvergenceTest:
         self.tolerance = 0.0
         self._initial_norm = math.inf
 
-    def target(self, rtol: float) -> float:
-        """Return the residual norm the solve must reach, ``max(atol, rtol · ‖r₀‖)``.
-
-        0 before the solve has started.
-        """
-        if not math.isfinite(self._initial_norm):
-            return 0.0
-        return max(self.tolerance, rtol * self._initial_norm)
-
     def fail(self, reason: int, stage: str, detail: str) -> None:
         """End the solve as failed at ``stage`` (one of the stages of a SolveResult)."""
         self.failure = (reason, stage, detail)
@@ -169,8 +161,8 @@ class ConvergenceTest:
         if self.converged_detail is not None:
             return _REASONS.CONVERGED_SNORM_RELATIVE
         if not math.isfinite(norm):
-            self.fail(_REASONS.DIVERGED_FNORM_NAN, "NaN", "the residual is not finite")
-            return _REASONS.DIVERGED_FNORM_NAN
+            self.fail(_compat.SNES_DIVERGED_NOT_FINITE, "NaN", "the residual is not finite")
+            return _compat.SNES_DIVERGED_NOT_FINITE
         if iteration == 0:
             self._initial_norm = norm
             self.tolerance = self.tolerances.absolute_tolerance()

@@ -189,18 +189,13 @@ class NewtonDirections:
         #: The truncated CG solving for the directions where the iterative path runs it.
         self.truncated: TruncatedCG | None = None
         self._ksp: PETSc.KSP | None = None
-        self.largest_forcing = 1.0e-6
-        #: The residual norm the Newton iteration must reach (set by the minimiser).
-        self.target: Callable[[], float] = lambda: 0.0
         self.start_solve()
 
     def choose_krylov_method(self, ksp: PETSc.KSP) -> None:
         """Make ``ksp`` a truncated CG where the iterative path preconditions with K₊.
 
-        Any other Krylov method the options ask for is run as PETSc has it. The relative
-        tolerance the options set is the largest forcing term (:meth:`force`).
+        Any other Krylov method the options ask for is run as PETSc has it.
         """
-        self.largest_forcing = ksp.getTolerances()[0]
         self.truncated = None
         if self.preconditioner is not self.matrix and ksp.getType() == PETSc.KSP.Type.CG:
             self._ksp = ksp  # the context lives as long as this reference (truncated_cg)
@@ -231,9 +226,6 @@ class NewtonDirections:
         """
         if P.handle == self.preconditioner.handle and P.handle != self.matrix.handle:
             A = self.matrix
-        iterative = self.options.linear_solver == "iterative"
-        if snes is not None and iterative and not self.options.fixed_krylov_tolerance:
-            self.force(snes)
         projected = self.tangent_switch is not None and not self._exact_next
         self.projected_now = projected
         self.kind = ProjectedTangent.kind if projected else self.tangent
@@ -257,22 +249,6 @@ class NewtonDirections:
                 finally:
                     self.tangent_switch(False)
         self._assembled(A)
-
-    def force(self, snes: PETSc.SNES) -> None:
-        """Set this iteration's Krylov tolerance: η = min(η_max, τ / (10 ‖r‖)).
-
-        Inexact Newton with τ the residual the Newton iteration must reach: far from a solution
-        a loose solve (η_max = 1e-6, the default ``ksp_rtol``) gives as good a step for less;
-        close to it the linear residual is held below a tenth of τ, so the last step is as
-        exact as it needs to be to converge and the energy still decreases to its rounding.
-        Not applied where the caller or the command line fixes ``ksp_rtol``.
-        """
-        norm = float(snes.getFunctionNorm())
-        forcing = self.largest_forcing
-        target = self.target()
-        if norm > 0.0 and target > 0.0:
-            forcing = min(forcing, 0.1 * target / norm)
-        snes.getKSP().setTolerances(rtol=forcing)
 
     def assemble_projected(self, x: PETSc.Vec) -> None:
         """Assemble the projected tangent at ``x`` into :attr:`matrix`."""

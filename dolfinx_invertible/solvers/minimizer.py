@@ -164,7 +164,6 @@ class EnergyMinimizer:
             watchdog_steps=watchdog_steps,
         )
         self._test = ConvergenceTest(self.tolerances)
-        directions.target = lambda: self._test.target(self.snes.getTolerances()[0])
         self._monitors = IterationMonitors()
 
         self.snes = PETSc.SNES().create(problem.comm)

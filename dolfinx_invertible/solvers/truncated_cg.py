@@ -22,6 +22,8 @@ import weakref
 
 from petsc4py import PETSc
 
+from dolfinx_invertible import _compat
+
 __all__ = ["BLEND_MARGIN", "MAX_RESTARTS", "SMALLEST_WEIGHT", "TruncatedCG", "truncated_cg"]
 
 _REASONS = PETSc.KSP.ConvergedReason
@@ -105,7 +107,7 @@ class TruncatedCG:
             reason, iterations, limit = self._cg(
                 ksp, exact, projected, weight, b, x, target, iterations, max_it
             )
-            if reason != _REASONS.CONVERGED_CG_NEG_CURVE:
+            if reason != _compat.KSP_CONVERGED_NEGATIVE_CURVATURE:
                 break
             if self.curvature_iteration is None:
                 self.curvature_iteration = iterations
@@ -121,7 +123,7 @@ class TruncatedCG:
             outcome = "exact"
         else:
             outcome = "blended" if weight > 0.0 else "projected"
-            reason = _REASONS.CONVERGED_CG_NEG_CURVE
+            reason = _compat.KSP_CONVERGED_NEGATIVE_CURVATURE
         self._finish(ksp, reason, iterations, outcome)
 
     def _finish(self, ksp: PETSc.KSP, reason: int, iterations: int, outcome: str) -> None:
@@ -184,7 +186,7 @@ class TruncatedCG:
                     projected_curvature = p.dot(k)
                 drop = projected_curvature - exact_curvature
                 limit = projected_curvature / drop if drop > 0.0 else 0.0
-                return _REASONS.CONVERGED_CG_NEG_CURVE, iteration, limit
+                return _compat.KSP_CONVERGED_NEGATIVE_CURVATURE, iteration, limit
             alpha = rz / curvature
             x.axpy(alpha, p)
             r.axpy(-alpha, q)
