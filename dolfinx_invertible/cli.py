@@ -159,9 +159,19 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     discretisation.add_argument("--size", type=float, metavar="L", help=f"size of the body [m] "
                                 f"(default: {default('size'):g})")  # fmt: skip
     for name, values in scene.choices.items():
+        if name == "mesh" and scene.takes_mesh_file:
+            continue
         discretisation.add_argument(f"--{name}", choices=list(values),
                                     type=type(values[0]), help=f"{name} (default: "
                                     f"{default(name)})")  # fmt: skip
+    if scene.takes_mesh_file:
+        names = " | ".join(scene.choices.get("mesh", ()))
+        discretisation.add_argument("--mesh", metavar="PATH" if not names else f"{{{names}}}|PATH",
+                                    help="the body: a gmsh .msh or XDMF mesh file of "
+                                    "straight tetrahedra, fitted into the box the scene's "
+                                    "own body fills (--resolution does not apply)"
+                                    + (f", or one of {names} (default: {default('mesh')})"
+                                       if names else ""))  # fmt: skip
     discretisation.add_argument("--project", choices=list(PROJECT_CHOICES), help="tangent: auto "
                                 "(exact, projected where the exact one gives no descent), yes "
                                 "(SPD-projected), no (exact) (default: "
@@ -195,6 +205,14 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     output.add_argument("--quiet", action="store_true", help="no progress bar")
     output.add_argument("--verbose", action="store_true", help="show compiler and solver "
                         "chatter (FFCx, cffi, numba warnings)")  # fmt: skip
+    if scene.dynamic:
+        output.add_argument("--checkpoint-every", type=int, metavar="N", default=10,
+                            dest="checkpoint_every", help="write DIR/checkpoint.npz every N "
+                            "steps and after the last one, to --resume from (0: never; "
+                            "default: 10)")  # fmt: skip
+        output.add_argument("--resume", type=Path, metavar="DIR", help="continue the stopped "
+                            "run in DIR from its checkpoint, with its own parameters (--t-end "
+                            "may be later), appending to its output")  # fmt: skip
 
 
 def _parameters(scene, arguments: argparse.Namespace):
@@ -212,6 +230,30 @@ def _parameters(scene, arguments: argparse.Namespace):
         values.setdefault(
             "extension", "c2" if values.get("model", Parameters.model) == "neo-hookean" else "none"
         )
+    return Parameters(**values)
+
+
+def _resumed_parameters(scene, arguments: argparse.Namespace):
+    """Return the parameters of the run in ``--resume DIR``, with a later ``--t-end`` if given."""
+    from dolfinx_invertible.io.checkpoint import read_state
+    from dolfinx_invertible.scenes.checkpoints import CHECKPOINT_NAME
+    from dolfinx_invertible.scenes.parameters import Parameters
+
+    given = [
+        name
+        for name in Parameters.__dataclass_fields__
+        if name != "t_end" and getattr(arguments, name, None) is not None
+    ]
+    if given or arguments.out is not None:
+        options = [f"--{name.replace('_', '-')}" for name in given]
+        options += ["--out"] if arguments.out is not None else []
+        raise ValueError(
+            f"--resume continues the run with its own parameters and output: drop "
+            f"{', '.join(options)}"
+        )
+    values = read_state(arguments.resume / CHECKPOINT_NAME)["parameters"]
+    if arguments.t_end is not None:
+        values["t_end"] = arguments.t_end
     return Parameters(**values)
 
 
@@ -276,12 +318,16 @@ def _run(arguments: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     _quiet_libraries(arguments.verbose)
     scene = get_scene(arguments.scene)
+    resume = getattr(arguments, "resume", None)
     try:
-        parameters = _parameters(scene, arguments)
+        if resume is not None:
+            parameters, output = _resumed_parameters(scene, arguments), resume
+        else:
+            parameters = _parameters(scene, arguments)
+            output = arguments.out or Path("results") / scene.name
         petsc = _petsc_options(arguments.petsc)
         petsc.update(_named_options(arguments.petsc_option))
         _check_combination(parameters, petsc, comm)
-        output = arguments.out or Path("results") / scene.name
         from dolfinx_invertible.scenes.runner import run_scene
 
         summary = run_scene(
@@ -291,6 +337,8 @@ def _run(arguments: argparse.Namespace) -> int:
             quiet=arguments.quiet or comm.rank != 0,
             petsc_options=_solver_options(petsc),
             comm=comm,
+            checkpoint_every=getattr(arguments, "checkpoint_every", 0) or None,
+            resume=resume is not None,
         )
     except ValueError as error:
         if arguments.verbose:

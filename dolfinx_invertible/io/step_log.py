@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -27,18 +28,27 @@ class StepLog:
     Parameters
     ----------
     path
-        The ``.jsonl`` file; overwritten.
+        The ``.jsonl`` file; overwritten, unless ``keep`` is given.
     comm
         The communicator whose rank 0 writes.
+    keep
+        Continue the file after its first ``keep`` lines (a resumed run), dropping the rest.
     """
 
-    def __init__(self, path: str | Path, comm: MPI.Comm):
+    def __init__(self, path: str | Path, comm: MPI.Comm, *, keep: int | None = None):
         self.path = Path(path)
         self._stream = None
         if comm.rank == 0:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            mode = "w"
+            if keep is not None and self.path.exists():
+                kept = self.path.read_text(encoding="utf-8").splitlines(keepends=True)[:keep]
+                temporary = self.path.with_name(f".{self.path.name}.tmp")
+                temporary.write_text("".join(kept), encoding="utf-8")
+                os.replace(temporary, self.path)
+                mode = "a"
             # Line buffered: each record reaches the file as soon as it is written.
-            self._stream = open(self.path, "w", buffering=1, encoding="utf-8")
+            self._stream = open(self.path, mode, buffering=1, encoding="utf-8")
 
     @staticmethod
     def format(step: int, t: float, record: Mapping[str, Any] | None) -> str:

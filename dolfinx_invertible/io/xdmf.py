@@ -56,6 +56,7 @@ in it is left from another run.
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import posixpath
@@ -116,6 +117,12 @@ class ResultWriter:
         The communicator; ``None`` means ``mesh.comm``, and any other must be congruent to it.
     log_path
         The JSON-lines step log; ``None`` means ``path`` with the suffix ``.jsonl``.
+    resume
+        ``(steps, time)``: continue the series of a run that was stopped, after its first
+        ``steps`` steps, the last of them at ``time``; the steps after them are dropped from
+        the XDMF file, the step folder and the log. The continued steps refer to a copy of the
+        mesh written now (``run.steps/mesh-NNNNNN.h5``, numbered by the first step that uses
+        it), since a run continued on another number of ranks numbers its nodes differently.
 
     Examples
     --------
@@ -132,6 +139,7 @@ class ResultWriter:
         *,
         comm: MPI.Comm | None = None,
         log_path: str | Path | None = None,
+        resume: tuple[int, float] | None = None,
     ):
         self.path = Path(path)
         if self.path.suffix != ".xdmf":
@@ -143,9 +151,11 @@ class ResultWriter:
         self.comm = mesh.comm if comm is None else comm
         if MPI.Comm.Compare(self.comm, mesh.comm) not in (MPI.IDENT, MPI.CONGRUENT):
             raise ValueError("comm must be the mesh's communicator (or congruent to it)")
-        self.steps_written = 0
-        self._last_time = -math.inf
+        self.steps_written = 0 if resume is None else int(resume[0])
+        self._last_time = -math.inf if resume is None else float(resume[1])
         self._closed = False
+        #: The mesh grid the steps refer to explicitly (a resumed run), or None: the series'.
+        self._mesh_grid = None
 
         self._cell_dimension = mesh.topology.dim
         self._num_owned_cells = mesh.topology.index_map(self._cell_dimension).size_local
@@ -161,18 +171,30 @@ class ResultWriter:
         self._owned_cell_dofs = _compat.cell_dofs(self._cell_space)[: self._num_owned_cells, 0]
         self._cell_fields: dict[str, dolfinx.fem.Function] = {}
 
-        self._on_rank_0(self._prepare_folders, OSError, f"cannot prepare the output of {self.path}")
+        if resume is None:
+            prepare, mesh_xml = self._prepare_folders, self._working_path
+        else:
+            prepare = self._truncate_series
+            mesh_xml = self.steps_folder / f"mesh-{self.steps_written:06d}{WORKING_SUFFIX}"
+        self._on_rank_0(prepare, OSError, f"cannot prepare the output of {self.path}")
         try:
-            with _compat.xdmf_file(self.comm, self._working_path, "w") as xdmf:
+            with _compat.xdmf_file(self.comm, mesh_xml, "w") as xdmf:
                 xdmf.write_mesh(mesh)
         except RuntimeError as error:
             raise ValueError(
-                f"cannot create {self.path.with_suffix('.h5')}: {error} (is another process "
+                f"cannot create {mesh_xml.with_suffix('.h5')}: {error} (is another process "
                 "writing it or holding it open? HDF5 locks the files it writes)"
             ) from None
         self._step_template = None
-        self._on_rank_0(self._publish_mesh, RuntimeError, f"could not write {self.path}")
-        self._log = StepLog(self.log_path, self.comm)
+        if resume is None:
+            self._on_rank_0(self._publish_mesh, RuntimeError, f"could not write {self.path}")
+        else:
+            self._on_rank_0(
+                lambda: self._adopt_mesh(mesh_xml), RuntimeError, f"could not write {mesh_xml}"
+            )
+        self._log = StepLog(
+            self.log_path, self.comm, keep=None if resume is None else self.steps_written
+        )
 
     def __enter__(self) -> ResultWriter:
         return self
@@ -310,7 +332,9 @@ class ResultWriter:
     def _merge_step_into_series(self) -> None:
         step_xml, _ = self._step_files(self.steps_written)
         self._on_rank_0(
-            lambda: _merge_step(step_xml, self.path), RuntimeError, f"could not rewrite {self.path}"
+            lambda: _merge_step(step_xml, self.path, self._mesh_grid),
+            RuntimeError,
+            f"could not rewrite {self.path}",
         )
 
     def _on_rank_0(self, action, error_type: type[Exception], failure: str) -> None:
@@ -337,12 +361,43 @@ class ResultWriter:
         else:
             self.steps_folder.unlink(missing_ok=True)
 
+    def _truncate_series(self) -> None:
+        if not self.path.is_file():
+            raise OSError(f"{self.path} does not exist: nothing to continue")
+        tree = ElementTree.parse(self.path)
+        series = _series(tree.getroot().find("Domain"))
+        steps = [] if series is None else series.findall("Grid")
+        if len(steps) < self.steps_written:
+            raise OSError(
+                f"{self.path} holds {len(steps)} steps, fewer than the {self.steps_written} to "
+                "continue after"
+            )
+        for step in steps[self.steps_written :]:
+            series.remove(step)
+        _write_series(tree, self.path)
+        self.steps_folder.mkdir(exist_ok=True)
+        # Files of steps after the ones kept (and of the meshes only those used).
+        for file in self.steps_folder.iterdir():
+            number = re.match(r"(?:mesh-)?(\d{6})\.", file.name)
+            if number is not None and int(number.group(1)) >= self.steps_written:
+                file.unlink()
+
+    def _adopt_mesh(self, mesh_xml: Path) -> None:
+        text = mesh_xml.read_text(encoding="utf-8")
+        self._step_template = _step_template(text, ".")
+        grid = ElementTree.fromstring(text).find("Domain/Grid")
+        folder = os.path.relpath(self.steps_folder, self.path.parent).replace(os.sep, "/")
+        for item in grid.iter("DataItem"):
+            item.text = _rebased(item.text, folder)
+        self._mesh_grid = grid
+        mesh_xml.unlink()
+
     def _publish_mesh(self) -> None:
         # DOLFINx's own file (the mesh grid) as it is, until the first step is merged into it.
         text = self._working_path.read_text(encoding="utf-8")
         _replace_atomically(self.path, text)
         self._working_path.unlink()
-        self._step_template = _step_template(text)
+        self._step_template = _step_template(text, "..")
 
     def _prepare_step(self) -> None:
         step_xml, _ = self._step_files(self.steps_written)
@@ -355,16 +410,17 @@ class ResultWriter:
         step_xml.write_text(self._step_template, encoding="utf-8")
 
 
-def _step_template(mesh_text: str) -> str:
+def _step_template(mesh_text: str, folder: str) -> str:
     """Return the XML a step starts from: the mesh grid of ``mesh_text``, seen from a step file.
 
     ``write_function`` refers to the first uniform grid of its file for the topology and the
-    geometry (and warns if there is none); this one points at the series' mesh data.
+    geometry (and warns if there is none); this one points at the series' mesh data, in
+    ``folder`` relative to the step folder.
     """
     root = ElementTree.fromstring(mesh_text)
     grid = root.find("Domain/Grid")
     for item in grid.iter("DataItem"):
-        item.text = _rebased(item.text, "..")
+        item.text = _rebased(item.text, folder)
     ElementTree.indent(grid, space="  ", level=2)
     return (
         f'{_XML_HEADER}<Xdmf Version="{root.get("Version", "3.0")}" '
@@ -379,13 +435,25 @@ def _rebased(reference: str, folder: str) -> str:
     return f"{posixpath.normpath(posixpath.join(folder, file))}:{dataset}"
 
 
-def _merge_step(step_xml: Path, path: Path) -> None:
+def _series(domain) -> ElementTree.Element | None:
+    return next(
+        (
+            grid
+            for grid in domain.findall("Grid")
+            if grid.get("GridType") == "Collection" and grid.get("Name") == SERIES_NAME
+        ),
+        None,
+    )
+
+
+def _merge_step(step_xml: Path, path: Path, mesh_grid=None) -> None:
     """Fold the per-Function collections DOLFINx wrote in ``step_xml`` into one step of ``path``.
 
     DOLFINx wrote one temporal collection per Function, each with the one grid of this step.
     Their attributes go into one new grid of the series, with their HDF5 references (relative
     to ``step_xml``) made relative to ``path``; the series replaces ``path`` atomically, and
-    ``step_xml`` is removed.
+    ``step_xml`` is removed. The step refers to the series' mesh, or holds the topology and
+    geometry of ``mesh_grid`` (references relative to ``path``) if one is given.
     """
     new_grids = [
         grid
@@ -397,14 +465,7 @@ def _merge_step(step_xml: Path, path: Path) -> None:
         raise RuntimeError(f"DOLFINx wrote no Function to {step_xml}")
     tree = ElementTree.parse(path)
     domain = tree.getroot().find("Domain")
-    series = next(
-        (
-            grid
-            for grid in domain.findall("Grid")
-            if grid.get("GridType") == "Collection" and grid.get("Name") == SERIES_NAME
-        ),
-        None,
-    )
+    series = _series(domain)
     if series is None:
         series = ElementTree.SubElement(
             domain, "Grid", Name=SERIES_NAME, GridType="Collection", CollectionType="Temporal"
@@ -412,7 +473,10 @@ def _merge_step(step_xml: Path, path: Path) -> None:
     step = ElementTree.SubElement(series, "Grid", Name=SERIES_NAME, GridType="Uniform")
     # All fields of one step share the mesh and time: take the first grid's references. The
     # XInclude points at the first uniform grid of its document, which in ``path`` is the mesh.
-    step.append(new_grids[0].find(_XINCLUDE))
+    if mesh_grid is None:
+        step.append(new_grids[0].find(_XINCLUDE))
+    else:
+        step.extend(copy.deepcopy(mesh_grid.find(part)) for part in ("Topology", "Geometry"))
     step.append(new_grids[0].find("Time"))
     folder = os.path.relpath(step_xml.parent, path.parent).replace(os.sep, "/")
     for grid in new_grids:
@@ -428,13 +492,17 @@ def _merge_step(step_xml: Path, path: Path) -> None:
         if "NumberType" not in item.attrib:
             item.set("NumberType", "Float")
             item.set("Precision", "8")
+    _write_series(tree, path)
+    step_xml.unlink()
+
+
+def _write_series(tree, path: Path) -> None:
     ElementTree.indent(tree, space="  ")
     # The prefix map is global: another library (meshio) may have bound "xi" to the other
     # XInclude URI.
     ElementTree.register_namespace("xi", _XINCLUDE_NAMESPACE)
     text = _XML_HEADER + ElementTree.tostring(tree.getroot(), encoding="unicode") + "\n"
     _replace_atomically(path, text)
-    step_xml.unlink()
 
 
 def _replace_atomically(path: Path, text: str) -> None:

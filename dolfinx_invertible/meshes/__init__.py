@@ -1,7 +1,8 @@
-"""Meshes made by gmsh scripts on first use, cached on disk and read in parallel.
+"""The scenes' meshes: a user's mesh files, and meshes gmsh scripts make on first use.
 
-No mesh data is downloaded or stored in the repository: each module here builds its geometry
-with gmsh (on rank 0), writes it once to a cache folder (``DOLFINX_INVERTIBLE_CACHE`` or
+:func:`read_mesh` reads a gmsh ``.msh`` or XDMF file, checks it and distributes it. The
+generated meshes are not stored in the package: each module here builds its geometry with gmsh
+(on rank 0), writes it once to a cache folder (``DOLFINX_INVERTIBLE_CACHE`` or
 ``~/.cache/dolfinx_invertible``), and every later run on any number of ranks reads that file.
 """
 
@@ -9,5 +10,6 @@ with gmsh (on rank 0), writes it once to a cache folder (``DOLFINX_INVERTIBLE_CA
 from mpi4py import MPI  # noqa: F401
 
 from dolfinx_invertible.meshes.cache import cache_directory, cached_mesh
+from dolfinx_invertible.meshes.files import MeshFileError, is_mesh_file, read_mesh
 
-__all__ = ["cache_directory", "cached_mesh"]
+__all__ = ["MeshFileError", "cache_directory", "cached_mesh", "is_mesh_file", "read_mesh"]

@@ -50,6 +50,7 @@ class BallHit(ContactScene):
     figure = "Fig. 9"
     defaults = {"E": 1.0e5, "nu": 0.45, "density": 1000.0, "dt": 0.002, "t_end": 0.2,
                 "resolution": 6, "size": 0.5, "damping": 0.1}  # fmt: skip
+    takes_mesh_file = True
 
     def __init__(self, parameters, comm):
         super().__init__(parameters, comm)
@@ -60,13 +61,15 @@ class BallHit(ContactScene):
         """Return the cube [−L/2, L/2]² × [lift, lift + L] just above the ground.
 
         The lift, a tenth of a cell, is about the barrier distance: the body starts touching
-        the ground's barrier and settles within a few steps.
+        the ground's barrier and settles within a few steps. A body from ``--mesh PATH`` is
+        fitted into the same box, standing on its bottom.
         """
         size, n = self.parameters.size, self.parameters.resolution
         half, lift = 0.5 * size, 0.1 * size / n
-        return dolfinx.mesh.create_box(
-            self.comm, [[-half, -half, lift], [half, half, lift + size]], [n, n, n]
-        )
+        box = ([-half, -half, lift], [half, half, lift + size])
+        if self.mesh_file is not None:
+            return self.read_mesh_file(box, anchor=(0, 0, -1))
+        return dolfinx.mesh.create_box(self.comm, list(box), [n, n, n])
 
     def ball_height(self, t: float) -> float:
         """Return the height of the ball's lowest point at time t: down, then back up."""

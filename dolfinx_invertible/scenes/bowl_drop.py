@@ -4,7 +4,8 @@ A cube of side 0.4 m (``--size``) centred at the origin, at rest, inside the bow
 (the inside of the unit sphere about the origin), falls under gravity (0, 0, −9.81) m/s²;
 frictionless contact through the IPC barrier, continuous collision detection on every Newton
 step. The bowl is fixed: no vertex is ever swept, the barrier and the collision-free step alone
-keep the cube inside.
+keep the cube inside. ``--mesh PATH`` drops the body in a gmsh or XDMF file instead, centred at
+the origin, scaled to fit the cube.
 
 Defaults, and why:
 
@@ -20,7 +21,10 @@ Defaults, and why:
 
 from __future__ import annotations
 
+from mpi4py import MPI
+
 import dolfinx
+import numpy as np
 
 from dolfinx_invertible.contact import Sphere
 from dolfinx_invertible.scenes.contact_scene import ContactScene
@@ -41,18 +45,29 @@ class BowlDrop(ContactScene):
     figure = "Fig. 13"
     defaults = {"E": 5.0e4, "nu": 0.4, "density": 1000.0, "dt": 0.01, "t_end": 2.0,
                 "resolution": 4, "size": 0.4, "damping": 0.01}  # fmt: skip
+    takes_mesh_file = True
 
     def create_mesh(self):
         """Return the cube of side ``size`` centred at the origin, ``resolution`` cells a side."""
         side, n = self.parameters.size, self.parameters.resolution
+        half = 0.5 * side
+        box = ([-half] * 3, [half] * 3)
+        if self.mesh_file is not None:
+            mesh = self.read_mesh_file(box, anchor=(0, 0, 0))
+            radius = np.linalg.norm(mesh.geometry.x, axis=1).max(initial=0.0)
+            if not self.comm.allreduce(radius, op=MPI.MAX) < BOWL_RADIUS:
+                raise ValueError(
+                    f"--size {side:g}: the body in {self.mesh_file} does not fit into the bowl "
+                    f"of radius {BOWL_RADIUS:g} m"
+                )
+            return mesh
         # Its corners are √3 side/2 from the centre: the cube must fit into the bowl.
         if not 3**0.5 * side / 2 < BOWL_RADIUS:
             raise ValueError(
                 f"--size {side:g}: the cube does not fit into the bowl of radius "
                 f"{BOWL_RADIUS:g} m (its half-diagonal must be smaller)"
             )
-        half = 0.5 * side
-        return dolfinx.mesh.create_box(self.comm, [[-half] * 3, [half] * 3], [n, n, n])
+        return dolfinx.mesh.create_box(self.comm, list(box), [n, n, n])
 
     def obstacles(self):
         """Return the bowl: the inside of the sphere of radius 1 m about the origin."""
@@ -62,11 +77,14 @@ class BowlDrop(ContactScene):
         """Return (0, 0, −9.81) m/s²."""
         return GRAVITY
 
-    def rest_height(self) -> float:
+    def rest_height(self) -> float | None:
         """Return the height of the centre of a rigid cube resting flat at the bowl's bottom.
 
         The corners of its bottom face touch the sphere, at a distance √2 side/2 from the axis.
+        None for a body from a mesh file.
         """
+        if self.mesh_file is not None:
+            return None
         half = 0.5 * self.parameters.size
         return -((BOWL_RADIUS**2 - 2.0 * half**2) ** 0.5) + half
 

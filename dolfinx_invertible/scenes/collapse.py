@@ -1,13 +1,15 @@
 """Collapse: a unit cube with every vertex moved to its centre recovers its shape (Fig. 5 left).
 
 Every vertex starts at 5 % of its distance from the centre (F = 0.05 I, 0.0125 % of the rest
-volume), at rest and unsupported; implicit dynamics lets the body spring back.
+volume), at rest and unsupported; implicit dynamics lets the body spring back. ``--mesh PATH``
+collapses the body in a gmsh or XDMF file instead, towards its bounding box's centre.
 """
 
 from __future__ import annotations
 
 import dolfinx
 
+from dolfinx_invertible.scenes.outcome import bounding_box
 from dolfinx_invertible.scenes.scene import Scene
 
 __all__ = ["Collapse"]
@@ -25,15 +27,20 @@ class Collapse(Scene):
     dynamic = True
     relaxation = True
     defaults = {"E": 1.0e3, "nu": 0.45, "density": 1.0, "dt": 0.01, "t_end": 0.4, "resolution": 4}
+    takes_mesh_file = True
 
     def create_mesh(self):
         """Return the cube [0, L]³ with ``resolution`` cells per edge (6 tetrahedra each)."""
         n, size = self.parameters.resolution, self.parameters.size
-        return dolfinx.mesh.create_box(self.comm, [[0.0] * 3, [size] * 3], [n, n, n])
+        box = ([0.0] * 3, [size] * 3)
+        if self.mesh_file is not None:
+            return self.read_mesh_file(box, anchor=(-1, -1, -1))
+        return dolfinx.mesh.create_box(self.comm, list(box), [n, n, n])
 
     def initial_displacement(self):
-        """Return u₀ = (SCALE − 1)(x − centre)."""
-        centre = 0.5 * self.parameters.size
+        """Return u₀ = (SCALE − 1)(x − centre), centre that of the body's bounding box."""
+        low, high = bounding_box(self.mesh.geometry.x, self.comm)
+        centre = (0.5 * (low + high))[:, None]
 
         def displacement(x):
             return (SCALE - 1.0) * (x - centre)

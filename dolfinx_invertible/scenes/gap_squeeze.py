@@ -52,14 +52,19 @@ class GapSqueeze(ContactScene):
     figure = "Fig. 10 (without friction)"
     defaults = {"E": 2.0e4, "nu": 0.4, "density": 1000.0, "dt": 0.002, "t_end": 0.15,
                 "resolution": 6, "size": 0.2, "damping": 0.0}  # fmt: skip
+    takes_mesh_file = True
 
     def create_mesh(self):
-        """Return the cube [−T/2, T/2]² × [z₀, z₀ + T] above the cylinders."""
+        """Return the cube [−T/2, T/2]² × [z₀, z₀ + T] above the cylinders.
+
+        A body from ``--mesh PATH`` is fitted into the same box, its bottom at z₀.
+        """
         size, n = self.parameters.size, self.parameters.resolution
         half, bottom = 0.5 * size, START * size
-        return dolfinx.mesh.create_box(
-            self.comm, [[-half, -half, bottom], [half, half, bottom + size]], [n, n, n]
-        )
+        box = ([-half, -half, bottom], [half, half, bottom + size])
+        if self.mesh_file is not None:
+            return self.read_mesh_file(box, anchor=(0, 0, -1))
+        return dolfinx.mesh.create_box(self.comm, list(box), [n, n, n])
 
     def roller_offset(self) -> float:
         """Return the distance of each cylinder's axis from the plane x = 0."""

@@ -9,6 +9,8 @@ The output of a run in its directory (``results/SCENE/`` by default):
 - ``summary.json``: every parameter used and how the run went, written at the end, also after a
   failure or an interrupt (``completed`` false and the reason given); the previous run's summary
   is removed when a run starts, so a summary never belongs to another run;
+- ``checkpoint.npz`` (dynamic scenes, with ``checkpoint_every``): the state to continue from
+  (:mod:`.checkpoints`);
 - scene-specific extras (e.g. ``trajectories.npy``).
 """
 
@@ -33,6 +35,11 @@ from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
 from dolfinx_invertible.fem.spaces import vector_function_space
 from dolfinx_invertible.io.step_log import json_ready
 from dolfinx_invertible.io.xdmf import ResultWriter
+from dolfinx_invertible.scenes.checkpoints import (
+    check_resumable,
+    restore_run,
+    write_run_checkpoint,
+)
 from dolfinx_invertible.scenes.observer import RunObserver
 from dolfinx_invertible.scenes.outcome import relaxation_outcome, rest_distance
 from dolfinx_invertible.scenes.parameters import PROJECT_CHOICES, Parameters, make_material
@@ -168,6 +175,8 @@ def run_scene(
     on_step: Callable[[Run], None] | None = None,
     observers: Sequence[RunObserver] = (),
     problem_options: dict[str, Any] | None = None,
+    checkpoint_every: int | None = None,
+    resume: bool = False,
 ) -> dict[str, Any]:
     """Run a scene; return its summary (written to ``output/summary.json`` too).
 
@@ -195,6 +204,12 @@ def run_scene(
         Options of the problem that override the scene's and the parameters' (e.g.
         ``{"linear_solver": "iterative", "blend_after": 0}``; see
         :class:`~dolfinx_invertible.HyperelasticProblem`).
+    checkpoint_every
+        Dynamic scenes with an ``output``: write ``checkpoint.npz`` there every this many
+        steps and after the last one (see :mod:`.checkpoints`); ``None``: no checkpoints.
+    resume
+        Continue the stopped run in ``output`` from its checkpoint (same scene and parameters;
+        ``t_end`` may be later), appending to its XDMF file and step log.
 
     Raises
     ------
@@ -202,6 +217,21 @@ def run_scene(
         Invalid parameters or output directory: before anything is computed.
     """
     parameters.validate()
+    scene_class.check_parameters(parameters)
+    if checkpoint_every is not None and (
+        int(checkpoint_every) != checkpoint_every or checkpoint_every < 1
+    ):
+        raise ValueError(f"--checkpoint-every must be an integer >= 1, got {checkpoint_every!r}")
+    checkpoint_state = None
+    if resume:
+        if not scene_class.dynamic or output is None:
+            raise ValueError(
+                "--resume continues dynamic scenes that wrote an output directory; "
+                f"{scene_class.name} is quasi-static"
+                if not scene_class.dynamic
+                else "--resume needs the output directory of the run"
+            )
+        checkpoint_state = check_resumable(output, scene_class.name, parameters)
     if output is not None:
         check_output_directory(output, comm)
         if comm.rank == 0:
@@ -260,7 +290,18 @@ def run_scene(
         run.controller = StepController(1.0 / parameters.steps)
     observers = list(observers)
     on_attempt = _watch(run, observers) if observers else None
-    writer = ResultWriter(output / f"{scene.name}.xdmf", mesh) if output is not None else None
+    if checkpoint_state is not None:
+        restore_run(run, output)
+    checkpoints = checkpoint_every if scene.dynamic and output is not None else None
+    writer = None
+    if output is not None:
+        writer = ResultWriter(
+            output / f"{scene.name}.xdmf",
+            mesh,
+            resume=None
+            if checkpoint_state is None
+            else (checkpoint_state["steps_written"], run.time),
+        )
     dofs = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
     total = parameters.t_end if scene.dynamic else 1.0
     progress = _Progress(not quiet and comm.rank == 0, total, "s" if scene.dynamic else "load")
@@ -268,9 +309,10 @@ def run_scene(
     completed = False
     try:
         with _Signals() as signals:
-            with signals.deferred():
-                _record(run, writer, None)
-            scene.record(run)
+            if checkpoint_state is None:
+                with signals.deferred():
+                    _record(run, writer, None)
+                scene.record(run)
             for observer in observers:
                 observer.start(run)
 
@@ -280,6 +322,9 @@ def run_scene(
                 with signals.deferred():
                     _record(run, writer, result)
                 scene.record(run)
+                if checkpoints is not None and run.steps % checkpoints == 0:
+                    with signals.deferred():
+                        write_run_checkpoint(run, output, writer.steps_written)
                 progress.update(
                     t, newton=result.newton_iterations, inverted=run.diagnostics["inverted_cells"]
                 )
@@ -290,6 +335,9 @@ def run_scene(
 
             if run.dynamics is not None:
                 run.dynamics.advance(parameters.t_end, on_step=step_done)
+                if checkpoints is not None and run.steps % checkpoints != 0:
+                    with signals.deferred():
+                        write_run_checkpoint(run, output, writer.steps_written)
             else:
                 solve_load_steps(
                     run.problem,

@@ -11,10 +11,12 @@ search or a report reads it).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
+from dolfinx_invertible.meshes import is_mesh_file, read_mesh
 from dolfinx_invertible.scenes.parameters import Parameters
 
 __all__ = ["Scene"]
@@ -41,6 +43,11 @@ class Scene:
     choices
         Allowed values of the scene-specific parameters (``mesh``, ``dimension``); a parameter
         not listed here does not apply to the scene.
+    takes_mesh_file
+        Whether ``--mesh PATH`` (a gmsh ``.msh`` or XDMF file) may replace the scene's body:
+        scenes whose loads do not depend on the body's shape. Such a scene's
+        :meth:`create_mesh` fits the file's body into the box its own body occupies
+        (:meth:`read_mesh_file`).
 
     Parameters
     ----------
@@ -57,12 +64,44 @@ class Scene:
     relaxation: ClassVar[bool] = False
     defaults: ClassVar[dict[str, Any]] = {}
     choices: ClassVar[dict[str, Sequence[Any]]] = {}
+    takes_mesh_file: ClassVar[bool] = False
 
     def __init__(self, parameters: Parameters, comm):
         self.parameters = parameters
         self.comm = comm
         #: The mesh :meth:`create_mesh` made (set by the runner before the other hooks).
         self.mesh = None
+
+    @classmethod
+    def check_parameters(cls, parameters: Parameters) -> None:
+        """Raise ``ValueError`` if a scene-specific parameter does not apply to this scene."""
+        names = tuple(cls.choices.get("mesh", (Parameters.mesh,)))
+        if parameters.mesh in names:
+            return
+        if is_mesh_file(parameters.mesh):
+            if not cls.takes_mesh_file:
+                raise ValueError(f"--mesh: the {cls.name} scene does not take a mesh file")
+            return
+        files = " or a .msh/.xdmf file" if cls.takes_mesh_file else ""
+        raise ValueError(f"--mesh must be {' or '.join(names)}{files}, got {parameters.mesh!r}")
+
+    @property
+    def mesh_file(self) -> Path | None:
+        """Return the user's mesh file (``--mesh PATH``), or None for the scene's own body."""
+        if self.takes_mesh_file and is_mesh_file(self.parameters.mesh):
+            return Path(self.parameters.mesh)
+        return None
+
+    def read_mesh_file(
+        self, box: tuple[Sequence[float], Sequence[float]], anchor: Sequence[int]
+    ) -> Any:
+        """Return the body in :attr:`mesh_file`, checked and fitted into ``box``.
+
+        Scaled the same in every direction to the largest size that fits the box (low, high),
+        and placed per direction by ``anchor``: −1 against the box's low side, 0 centred, +1
+        against its high side (see :func:`~dolfinx_invertible.meshes.read_mesh`).
+        """
+        return read_mesh(self.comm, self.mesh_file, box=box, anchor=anchor)
 
     # -- what every scene provides ----------------------------------------------------------
     def create_mesh(self):

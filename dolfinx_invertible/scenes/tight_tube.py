@@ -68,17 +68,20 @@ class TightTube(ContactScene):
     figure = "Fig. 11"
     defaults = {"E": 1.0e5, "nu": 0.3, "density": 1000.0, "dt": 0.005, "t_end": 0.6,
                 "resolution": 3, "size": 0.2, "damping": 0.2, "project": "no"}  # fmt: skip
+    takes_mesh_file = True
 
     def create_mesh(self):
         """Return the slab [−ℓ, 0] × [−W/2, W/2]² (ℓ = LENGTH·W), its front at x = 0.
 
-        ``resolution`` cells along its length, twice as many across.
+        ``resolution`` cells along its length, twice as many across. A body from ``--mesh
+        PATH`` is fitted into the same box, its front at x = 0.
         """
         width, n = self.parameters.size, self.parameters.resolution
         half, length = 0.5 * width, LENGTH * width
-        return dolfinx.mesh.create_box(
-            self.comm, [[-length, -half, -half], [0.0, half, half]], [n, 2 * n, 2 * n]
-        )
+        box = ([-length, -half, -half], [0.0, half, half])
+        if self.mesh_file is not None:
+            return self.read_mesh_file(box, anchor=(1, 0, 0))
+        return dolfinx.mesh.create_box(self.comm, list(box), [n, 2 * n, 2 * n])
 
     def throat_position(self) -> float:
         """Return x of the throat."""

@@ -312,6 +312,37 @@ class ImplicitDynamics:
                 on_step(self.time, result)
         return results
 
+    def checkpoint_fields(self) -> dict[str, Any]:
+        """Return the Functions a continued run needs: the state and the one before it."""
+        return {
+            "displacement": self.previous,
+            "velocity": self.velocity,
+            "older_displacement": self.older,
+            "older_velocity": self.older_velocity,
+        }
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """Return the time, the step controller and the solver's mode, as JSON values."""
+        return {
+            "time": self.time,
+            "steps": self.steps,
+            "last_step": self._last_step,
+            "controller": self.controller.state(),
+            "escalated": self.problem.solver.blend_after == 0,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue from a checkpoint: :meth:`checkpoint_fields` hold its Functions already."""
+        self.time = float(state["time"])
+        self.steps = int(state["steps"])
+        self._last_step = None if state["last_step"] is None else float(state["last_step"])
+        self.controller.restore(state["controller"])
+        if state["escalated"]:
+            self.problem.escalate()
+        self.u.x.array[:] = self.previous.x.array
+        if self.boundary_update is not None:
+            self.boundary_update(self.time)
+
     @property
     def kinetic_energy(self) -> float:
         """½ ∫ρ|v|² dX with the consistent mass (for reports), summed over ranks."""

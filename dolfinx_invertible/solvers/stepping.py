@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from typing import Protocol
+from typing import Any, Protocol
 
 import dolfinx.fem
 import numpy as np
@@ -142,6 +142,26 @@ class StepController:
         self.escalations += 1
         self._budget = self._consecutive_cuts + self.max_cuts
         self.step = size
+
+    def state(self) -> dict[str, Any]:
+        """Return what the next steps depend on, as JSON values (for a checkpoint)."""
+        return {
+            "step": self.step,
+            "accepted": list(self.accepted),
+            "cuts": self.cuts,
+            "escalations": self.escalations,
+            "consecutive_cuts": self._consecutive_cuts,
+            "budget": self._budget,
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue from a :meth:`state` (same nominal step and cut rules)."""
+        self.step = float(state["step"])
+        self.accepted = [float(size) for size in state["accepted"]]
+        self.cuts = int(state["cuts"])
+        self.escalations = int(state["escalations"])
+        self._consecutive_cuts = int(state["consecutive_cuts"])
+        self._budget = int(state["budget"])
 
     @property
     def consecutive_cuts(self) -> int:

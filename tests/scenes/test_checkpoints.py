@@ -1,0 +1,212 @@
+"""A run killed with SIGKILL at a random step and resumed ends where the uninterrupted run ends.
+
+The runs are separate processes (``dolfinx-invertible run``, under ``mpirun`` for two ranks),
+killed with SIGKILL (mpirun and every rank) once the step log has reached a step drawn at
+random, and continued with ``--resume``. The final states are compared node by node through
+the final checkpoints (nodes matched by coordinates, so runs on different rank counts compare
+too) and through the written XDMF series.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+
+from mpi4py import MPI
+
+import dolfinx
+import meshio
+import numpy as np
+import pytest
+
+from dolfinx_invertible import vector_function_space
+from dolfinx_invertible.io import paraview
+from dolfinx_invertible.io.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+
+COMMAND = [sys.executable, "-m", "dolfinx_invertible", "run", "collapse", "--quiet"]
+#: The collapse at resolution 4: 40 steps, a checkpoint every 3.
+RUN = ["--resolution", "4", "--checkpoint-every", "3"]
+MPIRUN = ["mpirun", "-n", "2"]
+MPIRUN_RANKS = {"serial": 1, "two": 2}
+#: Python's own copy of the environment: once this process has started MPI (as a singleton),
+#: the C environment holds its variables, and an mpirun that inherits them exits at once.
+ENVIRONMENT = dict(os.environ)
+
+
+def _descendants(pid: int) -> list[int]:
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as file:
+                    parent = int(file.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            children.setdefault(parent, []).append(int(entry))
+    found, pending = [], [pid]
+    while pending:
+        current = pending.pop()
+        found.append(current)
+        pending.extend(children.get(current, []))
+    return found
+
+
+def run_and_kill(folder, launcher, at_line: int) -> int:
+    """Start the run, SIGKILL it (and every rank) once its log has ``at_line`` lines."""
+    process = subprocess.Popen(
+        [*launcher, *COMMAND, *RUN, "--out", str(folder)], start_new_session=True, env=ENVIRONMENT
+    )
+    log = folder / "collapse.jsonl"
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline and process.poll() is None:
+        if log.exists() and len(log.read_text().splitlines()) >= at_line:
+            break
+        time.sleep(0.002)
+    assert process.poll() is None, "the run ended before it could be killed"
+    for pid in reversed(_descendants(process.pid)):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    process.wait()
+    return len(log.read_text().splitlines())
+
+
+def final_displacement(folder) -> tuple[np.ndarray, np.ndarray]:
+    """Return the displacement nodes (sorted by coordinates) and values of the last checkpoint."""
+    with np.load(folder / "checkpoint.npz") as data:
+        coordinates = data["displacement.coordinates"]
+        values = data["displacement.values"]
+        state = json.loads(str(data["state"]))
+    assert state["dynamics"]["time"] == pytest.approx(0.4)
+    order = np.lexsort(np.round(coordinates, 12).T[::-1])
+    return coordinates[order], values[order]
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    folders = {}
+    for name, launcher in (("serial", []), ("two", MPIRUN)):
+        folder = tmp_path_factory.mktemp(f"uninterrupted-{name}")
+        completed = subprocess.run(
+            [*launcher, *COMMAND, *RUN, "--out", str(folder)],
+            capture_output=True,
+            timeout=600,
+            env=ENVIRONMENT,
+        )
+        assert completed.returncode == 0, completed.stderr
+        folders[name] = folder
+    return folders
+
+
+@pytest.mark.parametrize(
+    "killed_on, resumed_on", [("serial", "serial"), ("two", "two"), ("serial", "two")]
+)
+def test_a_killed_run_resumes_to_the_end_of_the_same_run(
+    tmp_path, uninterrupted, killed_on, resumed_on
+):
+    launchers = {"serial": [], "two": MPIRUN}
+    folder = tmp_path / "run"
+    at_line = random.Random().randint(5, 36)  # the initial state and 4..35 steps
+    written = run_and_kill(folder, launchers[killed_on], at_line)
+    assert not (folder / "summary.json").exists()
+    with np.load(folder / "checkpoint.npz") as data:
+        resumed_from = json.loads(str(data["state"]))["steps_written"]
+    assert resumed_from <= written and resumed_from % 3 == 1  # every 3 steps, plus step 0
+
+    completed = subprocess.run(
+        [*launchers[resumed_on], *COMMAND, "--resume", str(folder)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=ENVIRONMENT,
+    )
+    assert completed.returncode == 0, completed.stderr
+    reference = uninterrupted[resumed_on]
+    summary = json.loads((folder / "summary.json").read_text())
+    expected = json.loads((reference / "summary.json").read_text())
+    assert summary["outcome"] == expected["outcome"] == "recovered"
+    assert summary["steps"] == expected["steps"] and summary["ranks"] == MPIRUN_RANKS[resumed_on]
+    assert summary["newton_iterations"] == expected["newton_iterations"]
+    assert summary["stepping"] == expected["stepping"]
+
+    nodes, values = final_displacement(folder)
+    reference_nodes, reference_values = final_displacement(reference)
+    assert np.allclose(nodes, reference_nodes, rtol=0.0, atol=1e-12)
+    # Round-off against the motion's scale, the body's size (1 m; the cube started collapsed by
+    # 0.95 of it): the same operations on one rank, MUMPS's sums in another order on two.
+    assert np.abs(values - reference_values).max() <= 1e-10
+
+    lines = [json.loads(line) for line in (folder / "collapse.jsonl").read_text().splitlines()]
+    assert [line["step"] for line in lines] == list(range(summary["steps"] + 1))
+    assert np.all(np.diff([line["time"] for line in lines]) > 0)
+    if "two" in (killed_on, resumed_on):
+        # The continued steps carry the mesh as this partition numbers it (on two ranks not
+        # even the same from run to run): ParaView reads every step with its own mesh.
+        resumed, whole = (
+            paraview.inspect_xdmf(path / "collapse.xdmf") for path in (folder, reference)
+        )
+        assert resumed["times"] == pytest.approx(whole["times"], abs=1e-12)
+        for step, expected_step in zip(resumed["steps"], whole["steps"]):
+            assert step["number_of_points"] == expected_step["number_of_points"]
+            ranges = step["point_data"]["displacement"]["component_ranges"]
+            expected_ranges = expected_step["point_data"]["displacement"]["component_ranges"]
+            assert np.allclose(ranges, expected_ranges, rtol=0.0, atol=1e-10)
+    else:  # serial: one numbering, and meshio, which reads one mesh for the series, reads it
+        written, reference_written = (
+            _last_step(path / "collapse.xdmf", summary["steps"] + 1) for path in (folder, reference)
+        )
+        assert np.abs(written - reference_written).max() <= 1e-10
+
+
+def _last_step(path, steps: int) -> np.ndarray:
+    with meshio.xdmf.TimeSeriesReader(str(path)) as reader:
+        reader.read_points_cells()
+        assert reader.num_steps == steps
+        t, point_data, _ = reader.read_data(reader.num_steps - 1)
+    assert t == pytest.approx(0.4)
+    return point_data["displacement"]
+
+
+def test_resume_refuses_what_it_cannot_continue(tmp_path, uninterrupted):
+    def run(*arguments):
+        return subprocess.run([*COMMAND, *arguments], capture_output=True, text=True, timeout=600)
+
+    missing = run("--resume", str(tmp_path))
+    assert missing.returncode == 2 and "no checkpoint at" in missing.stderr
+    changed = run("--resume", str(uninterrupted["serial"]), "--E", "2000")
+    assert changed.returncode == 2 and "drop --E" in changed.stderr
+    finished = run("--resume", str(uninterrupted["serial"]))
+    assert finished.returncode == 2 and "at t = 0.4 already" in finished.stderr
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("degree", [1, 2])
+def test_a_checkpoint_reads_back_on_any_partition(directory, degree):
+    comm = MPI.COMM_WORLD
+    mesh = dolfinx.mesh.create_unit_cube(comm, 3, 2, 2)
+    space = vector_function_space(mesh, degree)
+    field = dolfinx.fem.Function(space)
+    field.interpolate(lambda x: np.stack([x[0] ** 2, x[1] * x[2], np.sin(x[0] + x[2])]))
+    path = directory / f"p{degree}.npz"
+    size = write_checkpoint(path, {"u": field}, {"note": "test", "t": 0.25}, comm)
+    assert size == path.stat().st_size > 0
+    # Read back on one rank (another partition and numbering) and on all.
+    for reader in (MPI.COMM_SELF, comm):
+        other = dolfinx.mesh.create_unit_cube(reader, 3, 2, 2)
+        back = dolfinx.fem.Function(vector_function_space(other, degree))
+        state = read_checkpoint(path, {"u": back}, reader)
+        assert state == {"note": "test", "t": 0.25}
+        expected = dolfinx.fem.Function(back.function_space)
+        expected.interpolate(lambda x: np.stack([x[0] ** 2, x[1] * x[2], np.sin(x[0] + x[2])]))
+        # Equal up to the round-off of the nodes' coordinates (tabulated per partition).
+        assert np.allclose(back.x.array, expected.x.array, rtol=0.0, atol=1e-14)
+    coarser = dolfinx.mesh.create_unit_cube(comm, 2, 2, 2)
+    wrong = dolfinx.fem.Function(vector_function_space(coarser, degree))
+    with pytest.raises(CheckpointError, match="made on another mesh: no 'u' node at"):
+        read_checkpoint(path, {"u": wrong}, comm)
