@@ -7,7 +7,7 @@ PYTHON := $(VENV)/bin/python
 APT_PACKAGES := python3-dolfinx-real python3-numba python3-gmsh python3-meshio python3-pytest \
 	python3-matplotlib python3-tqdm python3-scipy python3-h5py python3-venv python3-pip \
 	python3-setuptools python3-pytest-xdist \
-	openmpi-bin paraview python3-paraview xvfb
+	openmpi-bin paraview python3-paraview python3-pil xvfb
 MPIEXEC := mpirun
 PYTEST_MPI := -q -p no:cacheprovider
 # The serial suite runs on one pytest worker per core, each test file on one worker (its module

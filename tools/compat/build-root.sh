@@ -21,13 +21,14 @@ apt_packages=(
   python3-dolfinx-real python3-numba python3-pytest python3-pytest-xdist python3-meshio
   python3-h5py python3-scipy
   python3-matplotlib python3-tqdm python3-gmsh openmpi-bin python3-venv python3-pip
-  ca-certificates paraview python3-paraview xvfb
+  ca-certificates paraview python3-paraview python3-pil xvfb
 )
 # The PyPI lane: DOLFINx 0.11 wheel with its own MPICH, and the same test dependencies from PyPI.
 # h5py < 3.16: its wheels from 3.16 on bundle HDF5 2.0, while the DOLFINx wheel loads HDF5 1.14
 # (through PETSc) into the same process, and h5py then fails with "Not a datatype".
 pip_packages=(
   dolfinx-solver-real numba pytest pytest-xdist meshio "h5py<3.16" scipy matplotlib tqdm gmsh
+  pillow
 )
 venv=/opt/dolfinx-wheel
 

@@ -2,14 +2,15 @@
 
 :func:`inspect_xdmf` opens a :class:`~dolfinx_invertible.io.xdmf.ResultWriter` series with
 ParaView's XDMF3 reader and reports its time steps, arrays and their ranges; :func:`render`
-draws one picture of a run; :func:`render_runs` draws one per run for the gallery. From the
-shell::
+draws one picture of a run (with analytic obstacles, if given); :func:`animate` an animated
+GIF; :func:`render_runs` draws one picture per run for the gallery. From the shell::
 
     python -m dolfinx_invertible.io.paraview inspect output/collapse/point_C2.xdmf
     python -m dolfinx_invertible.io.paraview render output/collapse --output docs/gallery
 
 - :mod:`.series`: reading and rendering (:func:`inspect_xdmf`, :func:`render`,
-  :func:`render_runs`, :func:`run_files`, the picture's constants);
+  :func:`animate`, :func:`render_runs`, :func:`run_files`, the picture's constants);
+- :mod:`.obstacles`: obstacles sampled on a grid for ParaView, the steps of a run's log;
 - :mod:`.process`: ``pvbatch`` as a child process, with its own ``Xvfb`` for pictures
   (:func:`find_pvbatch`, :class:`ParaViewError`);
 - :mod:`.cli`: the command line (:func:`main`).
@@ -22,12 +23,18 @@ from dolfinx_invertible.io.paraview.process import (
     find_pvbatch,
 )
 from dolfinx_invertible.io.paraview.series import (
+    ANIMATION_FRAMES,
+    ANIMATION_SIZE,
     BODY_OPACITY,
     IMAGE_SIZE,
     INVERTED_COLOUR,
     MIN_J_COLOUR_MAP,
     MIN_J_RANGE,
+    OBSTACLE_COLOUR,
+    OBSTACLE_OPACITY,
     TIME_KEYWORDS,
+    VIEW_DIRECTION,
+    animate,
     inspect_xdmf,
     render,
     render_runs,
@@ -35,14 +42,20 @@ from dolfinx_invertible.io.paraview.series import (
 )
 
 __all__ = [
+    "ANIMATION_FRAMES",
+    "ANIMATION_SIZE",
     "BODY_OPACITY",
     "IMAGE_SIZE",
     "INVERTED_COLOUR",
     "MIN_J_COLOUR_MAP",
     "MIN_J_RANGE",
+    "OBSTACLE_COLOUR",
+    "OBSTACLE_OPACITY",
     "ParaViewError",
     "ParaViewNotFoundError",
     "TIME_KEYWORDS",
+    "VIEW_DIRECTION",
+    "animate",
     "find_pvbatch",
     "inspect_xdmf",
     "main",

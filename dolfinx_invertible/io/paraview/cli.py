@@ -1,4 +1,4 @@
-"""The command line ``python -m dolfinx_invertible.io.paraview inspect|render ...``."""
+"""The command line ``python -m dolfinx_invertible.io.paraview inspect|render|animate ...``."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ from pathlib import Path
 
 from dolfinx_invertible.io.paraview.process import ParaViewError
 from dolfinx_invertible.io.paraview.series import (
+    ANIMATION_FRAMES,
+    ANIMATION_SIZE,
     IMAGE_SIZE,
     TIME_KEYWORDS,
     inspect_xdmf,
@@ -20,7 +22,7 @@ __all__ = ["main"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``inspect PATH`` prints JSON, ``render PATH... --output DIRECTORY``.
+    """Command line: ``inspect PATH`` prints JSON, ``render|animate PATH... --output DIRECTORY``.
 
     Returns the process exit code: 0, 1 if ParaView failed or is missing, 2 for bad arguments.
     """
@@ -51,14 +53,49 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--size", type=int, nargs=2, default=IMAGE_SIZE, metavar=("WIDTH", "HEIGHT")
     )
     render_parser.add_argument("--warp-scale", type=float, default=1.0)
+    animate_parser = commands.add_parser(
+        "animate", help="one animated GIF per run, the same picture at up to --frames steps"
+    )
+    animate_parser.add_argument(
+        "paths", type=Path, nargs="+", help="run directories or .xdmf files"
+    )
+    animate_parser.add_argument(
+        "--output", type=Path, required=True, help="directory of the animations"
+    )
+    animate_parser.add_argument("--frames", type=int, default=ANIMATION_FRAMES)
+    animate_parser.add_argument(
+        "--size", type=int, nargs=2, default=ANIMATION_SIZE, metavar=("WIDTH", "HEIGHT")
+    )
+    for subparser in (render_parser, animate_parser):
+        subparser.add_argument(
+            "--no-obstacles", action="store_true", help="do not draw the scene's obstacles"
+        )
     arguments = parser.parse_args(argv)
     try:
         if arguments.command == "inspect":
             print(json.dumps(inspect_xdmf(arguments.path), indent=1))
             return 0
+        obstacles_of = None
+        if not arguments.no_obstacles:
+            # The scenes know their obstacles; loaded only here, for the command line.
+            from dolfinx_invertible.scenes.pictures import run_obstacles as obstacles_of
+        if arguments.command == "animate":
+            results = render_runs(
+                arguments.paths,
+                arguments.output,
+                obstacles_of=obstacles_of,
+                animation=True,
+                frames=arguments.frames,
+                size=tuple(arguments.size),
+            )
+            for result in results:
+                print(f"{result['gif']}: {result['frames']} frames, {result['bytes']} bytes, "
+                      f"{result['seconds']:.1f} s")  # fmt: skip
+            return 0
         results = render_runs(
             arguments.paths,
             arguments.output,
+            obstacles_of=obstacles_of,
             time=arguments.time,
             size=tuple(arguments.size),
             warp_scale=arguments.warp_scale,

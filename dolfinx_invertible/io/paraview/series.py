@@ -16,20 +16,36 @@ ParaView here is made absolute first.
 from __future__ import annotations
 
 import math
+import tempfile
 import time as clock
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from dolfinx_invertible.io.paraview.obstacles import (
+    body_bounds,
+    resolve_time,
+    sample_groups,
+    split_obstacles,
+    step_table,
+)
 from dolfinx_invertible.io.paraview.process import run_script
 
 __all__ = [
+    "ANIMATION_FRAMES",
+    "ANIMATION_SIZE",
     "BODY_OPACITY",
     "IMAGE_SIZE",
     "INVERTED_COLOUR",
     "MIN_J_COLOUR_MAP",
     "MIN_J_RANGE",
+    "OBSTACLE_COLOUR",
+    "OBSTACLE_OPACITY",
     "TIME_KEYWORDS",
+    "VIEW_DIRECTION",
+    "animate",
     "inspect_xdmf",
     "render",
     "render_runs",
@@ -51,6 +67,14 @@ BODY_OPACITY = 0.45
 TIME_KEYWORDS = ("most-inverted", "first", "last")
 #: Width and height of a picture in pixels.
 IMAGE_SIZE = (1024, 768)
+#: Width and height of an animation's frames, and their largest number.
+ANIMATION_SIZE = (480, 360)
+ANIMATION_FRAMES = 40
+#: RGB and opacity of the obstacles (translucent: the body inside a bowl or tube shows).
+OBSTACLE_COLOUR = (0.62, 0.55, 0.45)
+OBSTACLE_OPACITY = 0.35
+#: Where the camera looks from, towards a body that is not flat (a flat one: from +z).
+VIEW_DIRECTION = (1.6, -2.2, 1.3)
 
 
 def inspect_xdmf(
@@ -113,6 +137,7 @@ def render(
     warp_scale: float = 1.0,
     body_opacity: float = BODY_OPACITY,
     title: str | None = None,
+    obstacles: Sequence[Any] = (),
     executable: str | Path | None = None,
     timeout: float = 600.0,
 ) -> dict[str, Any]:
@@ -148,6 +173,11 @@ def render(
         Opacity of the body, in (0, 1].
     title
         First line of the label; None: the file's name without its suffix.
+    obstacles
+        Analytic obstacles (objects with ``gap(x, t)``, e.g. a contact scene's ``obstacles()``)
+        drawn where they are at the time shown, translucent, in a box around the body's whole
+        path, cut away on the camera's side of the path's middle (see :mod:`.obstacles`);
+        needs the run's step log next to ``path``.
     executable
         The ``pvbatch`` to run (see :func:`find_pvbatch`).
     timeout
@@ -174,16 +204,7 @@ def render(
         If ParaView fails.
     """
     source = _existing_xdmf(path)
-    width, height = (int(value) for value in size)
-    if width != size[0] or height != size[1] or not (16 <= width <= 8192 and 16 <= height <= 8192):
-        raise ValueError(f"size must be two whole numbers of pixels in [16, 8192], got {size}")
-    low, high = (float(value) for value in min_J_range)
-    if not (math.isfinite(low) and math.isfinite(high) and low < high):
-        raise ValueError(f"min_J_range must be two finite numbers, low < high, got {min_J_range}")
-    if not math.isfinite(warp_scale):
-        raise ValueError(f"warp_scale must be finite, got {warp_scale}")
-    if not 0.0 < body_opacity <= 1.0:
-        raise ValueError(f"body_opacity must lie in (0, 1], got {body_opacity}")
+    request = _picture_request(source, size, min_J_range, warp_scale, body_opacity, title)
     if time is None:
         time = "most-inverted"
     elif isinstance(time, str):
@@ -197,12 +218,133 @@ def render(
     if png.suffix.lower() != ".png":
         raise ValueError(f"png must end in .png, got {str(png)!r}")
     png.parent.mkdir(parents=True, exist_ok=True)
+    request.update(command="render", png=str(png), time=time)
+    started = clock.perf_counter()
+    with tempfile.TemporaryDirectory() as folder:
+        if obstacles:
+            times, inverted = step_table(source)
+            step = resolve_time(times, inverted, time)
+            request["time"] = times[step]
+            # Around the body's whole path (50 steps of it at most): the scene, not only where
+            # the body is at that time (a cube in the middle of its bowl, say).
+            path_steps = np.linspace(0, len(times) - 1, min(50, len(times))).round().astype(int)
+            bounds = body_bounds(source, sorted(set(path_steps) | {step}))
+            groups = split_obstacles(obstacles, times[step], *bounds, VIEW_DIRECTION)
+            request["obstacles"] = [
+                sample_groups(groups, times[step], *bounds, Path(folder) / "gap")
+            ]
+            request["cutaway_origin"] = (0.5 * (bounds[0] + bounds[1])).tolist()
+        result = run_script(request, executable, timeout=timeout, display=True)
+    result["seconds"] = clock.perf_counter() - started
+    return result
+
+
+def animate(
+    path: str | Path,
+    gif: str | Path,
+    *,
+    frames: int = ANIMATION_FRAMES,
+    frame_seconds: float = 0.1,
+    size: tuple[int, int] = ANIMATION_SIZE,
+    min_J_range: tuple[float, float] = MIN_J_RANGE,
+    body_opacity: float = BODY_OPACITY,
+    title: str | None = None,
+    obstacles: Sequence[Any] = (),
+    executable: str | Path | None = None,
+    timeout: float = 1800.0,
+) -> dict[str, Any]:
+    """Write an animated GIF of a run: :func:`render`'s picture at up to ``frames`` steps.
+
+    The steps are spread evenly over the run (its step log next to ``path``: every step if
+    there are no more than ``frames``); the camera stays fixed, framing the body (and the
+    obstacles near it) at every one of them. Moving obstacles are sampled at every frame.
+
+    Returns
+    -------
+    dict
+        ``gif`` (absolute), ``times`` (of the frames), ``frames``, ``bytes`` and ``seconds``.
+    """
+    source = _existing_xdmf(path)
+    request = _picture_request(source, size, min_J_range, 1.0, body_opacity, title)
+    gif = Path(gif).resolve()
+    if gif.suffix.lower() != ".gif":
+        raise ValueError(f"gif must end in .gif, got {str(gif)!r}")
+    if int(frames) != frames or frames < 2:
+        raise ValueError(f"frames must be a whole number >= 2, got {frames}")
+    if not (math.isfinite(frame_seconds) and frame_seconds > 0.0):
+        raise ValueError(f"frame_seconds must be a number > 0, got {frame_seconds}")
+    gif.parent.mkdir(parents=True, exist_ok=True)
+    times, _ = step_table(source)
+    steps = sorted(set(np.linspace(0, len(times) - 1, min(frames, len(times))).round().astype(int)))
+    request.update(command="animate", times=[times[step] for step in steps])
+    started = clock.perf_counter()
+    with tempfile.TemporaryDirectory() as folder:
+        request["png_pattern"] = str(Path(folder) / "frame-{index:04d}.png")
+        if obstacles:
+            moving = any(getattr(obstacle, "motion", None) is not None for obstacle in obstacles)
+            bounds = body_bounds(source, steps)
+            # Grouped at the first frame for all frames: a surface keeps its pipeline.
+            groups = split_obstacles(obstacles, times[steps[0]], *bounds, VIEW_DIRECTION)
+            request["obstacles"] = [
+                sample_groups(groups, times[step], *bounds, Path(folder) / f"gap-{index}")
+                for index, step in enumerate(steps if moving else steps[:1])
+            ]
+            request["cutaway_origin"] = (0.5 * (bounds[0] + bounds[1])).tolist()
+        result = run_script(request, executable, timeout=timeout, display=True)
+        _write_gif(result["pngs"], gif, frame_seconds)
+    return {
+        "gif": str(gif),
+        "times": result["times"],
+        "frames": len(result["pngs"]),
+        "bytes": gif.stat().st_size,
+        "seconds": clock.perf_counter() - started,
+    }
+
+
+def _write_gif(pngs: Sequence[str], gif: Path, frame_seconds: float) -> None:
+    from PIL import Image
+
+    images = [Image.open(png).convert("RGB") for png in pngs]
+    # One palette for every frame, made from all of them (the red of cells inverted in a few
+    # frames only included): no flicker between frames, no colour lost.
+    width, height = images[0].size
+    montage = Image.new("RGB", (width, height * len(images)))
+    for index, image in enumerate(images):
+        montage.paste(image, (0, index * height))
+    palette = montage.quantize(colors=255, method=Image.Quantize.MEDIANCUT)
+    frames = [image.quantize(palette=palette, dither=Image.Dither.NONE) for image in images]
+    frames[0].save(
+        gif,
+        save_all=True,
+        append_images=frames[1:],
+        duration=round(1000 * frame_seconds),
+        loop=0,
+        optimize=True,
+    )
+
+
+def _picture_request(
+    source: Path,
+    size: tuple[int, int],
+    min_J_range: tuple[float, float],
+    warp_scale: float,
+    body_opacity: float,
+    title: str | None,
+) -> dict[str, Any]:
+    """Check the picture's options; return the request's common part."""
+    width, height = (int(value) for value in size)
+    if width != size[0] or height != size[1] or not (16 <= width <= 8192 and 16 <= height <= 8192):
+        raise ValueError(f"size must be two whole numbers of pixels in [16, 8192], got {size}")
+    low, high = (float(value) for value in min_J_range)
+    if not (math.isfinite(low) and math.isfinite(high) and low < high):
+        raise ValueError(f"min_J_range must be two finite numbers, low < high, got {min_J_range}")
+    if not math.isfinite(warp_scale):
+        raise ValueError(f"warp_scale must be finite, got {warp_scale}")
+    if not 0.0 < body_opacity <= 1.0:
+        raise ValueError(f"body_opacity must lie in (0, 1], got {body_opacity}")
     name = source.stem if title is None else title
-    request = {
-        "command": "render",
+    return {
         "path": str(source),
-        "png": str(png),
-        "time": time,
         "size": [width, height],
         "displacement": "displacement",
         "warp_scale": float(warp_scale),
@@ -212,14 +354,13 @@ def render(
         "colour_range": [low, high],
         "body_opacity": float(body_opacity),
         "inverted_colour": list(INVERTED_COLOUR),
+        "obstacle_colour": list(OBSTACLE_COLOUR),
+        "obstacle_opacity": OBSTACLE_OPACITY,
+        "view_direction": list(VIEW_DIRECTION),
         # Braces of the name must not reach str.format in the script.
         "label": name.replace("{", "{{").replace("}", "}}")
         + "\nt = {time:.6g}\nsize {extent}\ninverted cells (red): {inverted}",
     }
-    started = clock.perf_counter()
-    result = run_script(request, executable, timeout=timeout, display=True)
-    result["seconds"] = clock.perf_counter() - started
-    return result
 
 
 def run_files(paths: Sequence[str | Path]) -> list[Path]:
@@ -248,7 +389,12 @@ def run_files(paths: Sequence[str | Path]) -> list[Path]:
 
 
 def render_runs(
-    paths: Sequence[str | Path], output_directory: str | Path, **options: Any
+    paths: Sequence[str | Path],
+    output_directory: str | Path,
+    *,
+    obstacles_of: Callable[[Path], Sequence[Any]] | None = None,
+    animation: bool = False,
+    **options: Any,
 ) -> list[dict[str, Any]]:
     """Render one picture per run into ``output_directory/<run directory name>/<run name>.png``.
 
@@ -259,19 +405,31 @@ def render_runs(
     output_directory
         Where the pictures go, one subdirectory per directory of runs, so that runs of the same
         name in different directories (``results/<scene>/``) do not overwrite each other.
+    obstacles_of
+        Returns the obstacles to draw for a run's directory (e.g.
+        :func:`dolfinx_invertible.scenes.pictures.run_obstacles`); None draws none.
+    animation
+        An animated GIF (:func:`animate`) instead of a picture (``<run name>.gif``).
     **options
-        Keyword options of :func:`render`.
+        Keyword options of :func:`render` (or :func:`animate`).
 
     Returns
     -------
     list of dict
-        What :func:`render` returned for each run, in order.
+        What :func:`render` (:func:`animate`) returned for each run, in order.
     """
     output_directory = Path(output_directory)
-    return [
-        render(path, output_directory / path.resolve().parent.name / f"{path.stem}.png", **options)
-        for path in run_files(paths)
-    ]
+    results = []
+    for path in run_files(paths):
+        obstacles = obstacles_of(path.parent) if obstacles_of is not None else ()
+        target = output_directory / path.resolve().parent.name / path.stem
+        if animation:
+            results.append(animate(path, target.with_suffix(".gif"), obstacles=obstacles,
+                                   **options))  # fmt: skip
+        else:
+            results.append(render(path, target.with_suffix(".png"), obstacles=obstacles,
+                                  **options))  # fmt: skip
+    return results
 
 
 def _existing_xdmf(path: str | Path) -> Path:

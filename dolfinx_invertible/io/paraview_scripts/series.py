@@ -4,9 +4,9 @@ Usage::
 
     pvbatch --no-mpi series.py REQUEST.json RESULT.json
 
-``REQUEST.json`` holds ``{"command": "inspect" | "render", ...}`` with absolute paths; the
-result (or ``{"error": traceback}``) goes to ``RESULT.json``, since ParaView prints its own
-messages on stdout and stderr. Only ParaView's Python (``paraview.simple`` and VTK's numpy
+``REQUEST.json`` holds ``{"command": "inspect" | "render" | "animate", ...}`` with absolute
+paths; the result (or ``{"error": traceback}``) goes to ``RESULT.json``, since ParaView prints
+its own messages on stdout and stderr. Only ParaView's Python (``paraview.simple`` and VTK's numpy
 adapter) is used here, so the script runs with whatever Python the ParaView build embeds.
 """
 
@@ -17,7 +17,8 @@ import traceback
 import numpy
 from paraview import servermanager, simple
 from vtkmodules.numpy_interface import dataset_adapter
-from vtkmodules.vtkCommonDataModel import vtkCellTypes
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonDataModel import vtkCellTypes, vtkImageData
 
 #: Share of the picture's width left of the scalar bar, where the body is framed.
 BODY_SHARE = 0.82
@@ -164,7 +165,7 @@ def choose_time(reader, times, wanted, path):
     return min(times, key=lambda t: abs(t - wanted))
 
 
-def frame_camera(view, points, aspect):
+def frame_camera(view, points, aspect, view_direction):
     """Look at ``points`` (n, 3) from a fixed oblique direction (along -z for a flat body).
 
     A parallel projection whose scale fits the points as seen on the screen into the part of
@@ -174,7 +175,7 @@ def frame_camera(view, points, aspect):
     low, high = points.min(axis=0), points.max(axis=0)
     size = max(float(numpy.linalg.norm(high - low)), 1e-12)
     flat = high[2] - low[2] <= 1e-9 * size
-    direction = numpy.array([0.0, 0.0, 1.0]) if flat else numpy.array([1.6, -2.2, 1.3])
+    direction = numpy.array([0.0, 0.0, 1.0]) if flat else numpy.array(view_direction, float)
     direction /= numpy.linalg.norm(direction)
     up = numpy.array([0.0, 1.0, 0.0]) if flat else numpy.array([0.0, 0.0, 1.0])
     up -= (up @ direction) * direction
@@ -201,8 +202,179 @@ def frame_camera(view, points, aspect):
     view.GetRenderer().ResetCameraClippingRange()
 
 
+def obstacle_source(obstacles):
+    """Return the grid source and the obstacles' surfaces: the zero contour of their gap.
+
+    ``obstacles`` holds the grid (``origin``, ``spacing``, ``dimensions``) and the ``.npy`` file
+    of the smallest gap to any obstacle of the group at its points, written by the package.
+    """
+    values = numpy.load(obstacles["values"])
+    image = vtkImageData()
+    image.SetDimensions(*obstacles["dimensions"])
+    image.SetOrigin(*obstacles["origin"])
+    image.SetSpacing(*obstacles["spacing"])
+    array = numpy_support.numpy_to_vtk(values.ravel(order="F"), deep=True)
+    array.SetName("gap")
+    image.GetPointData().SetScalars(array)
+    producer = simple.TrivialProducer()
+    producer.GetClientSideObject().SetOutput(image)
+    contour = simple.Contour(Input=producer, ContourBy=["POINTS", "gap"], Isosurfaces=[0.0])
+    return producer, contour
+
+
+def set_obstacles(producer, obstacles):
+    """Replace the sampled gap of ``producer`` (a frame of a moving obstacle)."""
+    image = producer.GetClientSideObject().GetOutputDataObject(0)
+    values = numpy.load(obstacles["values"])
+    array = numpy_support.numpy_to_vtk(values.ravel(order="F"), deep=True)
+    array.SetName("gap")
+    image.GetPointData().SetScalars(array)
+    image.Modified()
+    producer.MarkModified(producer)
+
+
+class Picture:
+    """The pipeline of a picture: the body, its inverted cells, the obstacles and a label."""
+
+    def __init__(self, request, reader, cell_arrays, point_arrays, time, all_inverted):
+        self.request = request
+        view = self.view = simple.CreateView("RenderView")
+        width, height = request["size"]
+        # Font sizes in points of a 768 pixel high picture, scaled with the picture.
+        font_scale = height / 768.0
+        view.ViewSize = [width, height]
+        view.OrientationAxesVisibility = 0
+        view.UseColorPaletteForBackground = 0
+        view.Background = [1.0, 1.0, 1.0]
+        view.ViewTime = time
+
+        body = reader
+        displacement = request["displacement"]
+        if displacement in point_arrays:
+            body = simple.WarpByVector(Input=reader, Vectors=["POINTS", displacement])
+            body.ScaleFactor = request["warp_scale"]
+        self.body = body
+        self.has_inverted = "inverted" in cell_arrays
+        shown = body
+        if self.has_inverted and all_inverted:
+            # The body without its inverted cells: drawn over them, their faces would fight
+            # with the red ones for the same pixels.
+            shown = simple.Threshold(Input=body, Scalars=["CELLS", "inverted"])
+            shown.LowerThreshold = 0.5
+            shown.ThresholdMethod = "Below Lower Threshold"
+
+        body_display = simple.Show(shown, view)
+        body_display.Representation = "Surface With Edges"
+        body_display.EdgeColor = [0.25, 0.25, 0.25]
+        body_display.Opacity = request["body_opacity"]
+        colour_array = request["colour_array"]
+        if colour_array in cell_arrays:
+            simple.ColorBy(body_display, ("CELLS", colour_array))
+            lookup_table = simple.GetColorTransferFunction(colour_array)
+            lookup_table.ApplyPreset(request["colour_map"], True)
+            lookup_table.AutomaticRescaleRangeMode = "Never"
+            lookup_table.RescaleTransferFunction(*request["colour_range"])
+            bar = simple.GetScalarBar(lookup_table, view)
+            bar.Title = request["colour_title"]
+            bar.ComponentTitle = ""
+            bar.TitleColor = [0.0, 0.0, 0.0]
+            bar.LabelColor = [0.0, 0.0, 0.0]
+            bar.TitleFontSize = max(6, round(18 * font_scale))
+            bar.LabelFontSize = max(6, round(16 * font_scale))
+            # Five round labels from end to end instead of ParaView's dense automatic ones.
+            bar.UseCustomLabels = 1
+            bar.CustomLabels = numpy.linspace(*request["colour_range"], 5).tolist()
+            bar.AddRangeLabels = 0
+            bar.AutomaticLabelFormat = 0
+            bar.LabelFormat = "%.3g"
+            bar.WindowLocation = "Any Location"
+            bar.Position = [0.88, 0.1]
+            bar.ScalarBarLength = 0.8
+            body_display.SetScalarBarVisibility(view, True)
+        else:
+            simple.ColorBy(body_display, None)
+            body_display.AmbientColor = body_display.DiffuseColor = [0.7, 0.7, 0.7]
+
+        if self.has_inverted and all_inverted:
+            inverted = simple.Threshold(Input=body, Scalars=["CELLS", "inverted"])
+            inverted.LowerThreshold = 0.5
+            inverted.UpperThreshold = 1.5
+            inverted.ThresholdMethod = "Between"
+            inverted_display = simple.Show(inverted, view)
+            # Not ColorBy(None): it fails on a frame where no cell is inverted (no arrays).
+            inverted_display.ColorArrayName = ["POINTS", ""]
+            inverted_display.Representation = "Surface With Edges"
+            inverted_display.AmbientColor = request["inverted_colour"]
+            inverted_display.DiffuseColor = request["inverted_colour"]
+            inverted_display.EdgeColor = [0.35, 0.0, 0.0]
+            # Some ambient light keeps the faces turned away from the light recognisably red.
+            inverted_display.Ambient = 0.35
+
+        # Per group ("whole", and "cut": those between the camera and the body, drawn as a
+        # cutaway without their half nearer to the camera than the middle of the body's path,
+        # so that a bowl, a tube or a gap shows the body inside): its grid source and surface.
+        self.obstacles = {}
+        for group, grid in (request.get("obstacles") or [{}])[0].items():
+            producer, surface = obstacle_source(grid)
+            if group == "cut":
+                surface = simple.Clip(Input=surface)
+                surface.ClipType = "Plane"
+                surface.ClipType.Origin = request["cutaway_origin"]
+                surface.ClipType.Normal = list(request["view_direction"])
+                surface.Crinkleclip = 0
+            display = simple.Show(surface, view)
+            display.ColorArrayName = ["POINTS", ""]
+            display.AmbientColor = display.DiffuseColor = request["obstacle_colour"]
+            display.Opacity = request["obstacle_opacity"]
+            self.obstacles[group] = (producer, surface)
+
+        self.label = simple.Text(Text="")
+        label_display = simple.Show(self.label, view)
+        label_display.WindowLocation = "Upper Left Corner"
+        label_display.Color = [0.0, 0.0, 0.0]
+        label_display.FontSize = max(6, round(18 * font_scale))
+        label_display.Justification = "Left"
+
+    def show(self, time, frame=0):
+        """Move the pipeline to ``time``; return the warped body's dataset and inverted count."""
+        self.view.ViewTime = time
+        if 0 < frame < len(self.request.get("obstacles") or []):
+            for group, grid in self.request["obstacles"][frame].items():
+                set_obstacles(self.obstacles[group][0], grid)
+        self.body.UpdatePipeline(time)
+        data = fetch(self.body, time)
+        inverted_cells = None
+        if self.has_inverted:
+            values = dataset_adapter.WrapDataObject(data).CellData["inverted"]
+            inverted_cells = int(numpy.count_nonzero(numpy.asarray(values) > 0.5))
+        bounds = data.GetBounds()
+        sizes = [bounds[2 * axis + 1] - bounds[2 * axis] for axis in range(3)]
+        # A flat (2D) body: its zero thickness says nothing.
+        extent = " x ".join(f"{size:.3g}" for size in (sizes if sizes[2] > 0 else sizes[:2]))
+        self.label.Text = self.request["label"].format(
+            time=time, inverted=inverted_cells or 0, extent=extent
+        )
+        return data, inverted_cells
+
+    def framed_points(self, data):
+        """Return the points the camera fits: the body's and the obstacles' drawn near it."""
+        points = [numpy.asarray(dataset_adapter.WrapDataObject(data).Points)]
+        for _, surface in self.obstacles.values():
+            surface.UpdatePipeline()
+            drawn = servermanager.Fetch(surface)
+            if drawn.GetNumberOfPoints() > 0:
+                points.append(numpy.asarray(dataset_adapter.WrapDataObject(drawn).Points))
+        return numpy.vstack(points)
+
+    def save(self, png):
+        """Write the view to ``png``."""
+        width, height = self.request["size"]
+        simple.SaveScreenshot(png, self.view, ImageResolution=[width, height],
+                              TransparentBackground=0)  # fmt: skip
+
+
 def render(request):
-    """Warped body coloured by ``min_J``, inverted cells red on top, a scalar bar and a label."""
+    """Warped body coloured by ``min_J``, inverted cells red on top, obstacles, bar and label."""
     reader, times = open_series(request["path"])
     # The reader's array selections: its data information is empty until it first updates.
     cell_arrays = list(reader.CellArrays)
@@ -210,109 +382,52 @@ def render(request):
     if not times:
         raise ValueError(f"{request['path']} has no time steps")
     time = choose_time(reader, times, request["time"], request["path"])
-
-    view = simple.CreateView("RenderView")
-    width, height = request["size"]
-    # Font sizes in points of a 768 pixel high picture, scaled with the picture.
-    font_scale = height / 768.0
-    view.ViewSize = [width, height]
-    view.OrientationAxesVisibility = 0
-    view.UseColorPaletteForBackground = 0
-    view.Background = [1.0, 1.0, 1.0]
-    view.ViewTime = time
-
-    body = reader
-    displacement = request["displacement"]
-    if displacement in point_arrays:
-        body = simple.WarpByVector(Input=reader, Vectors=["POINTS", displacement])
-        body.ScaleFactor = request["warp_scale"]
-    body.UpdatePipeline(time)
-    data = fetch(body, time)
-    inverted_cells = None
+    inverted_now = None
     if "inverted" in cell_arrays:
-        values = dataset_adapter.WrapDataObject(data).CellData["inverted"]
-        inverted_cells = int(numpy.count_nonzero(numpy.asarray(values) > 0.5))
-    shown = body
-    if inverted_cells:
-        # The body without its inverted cells: drawn over them, their faces would fight with
-        # the red ones for the same pixels.
-        shown = simple.Threshold(Input=body, Scalars=["CELLS", "inverted"])
-        shown.LowerThreshold = 0.5
-        shown.ThresholdMethod = "Below Lower Threshold"
-
-    body_display = simple.Show(shown, view)
-    body_display.Representation = "Surface With Edges"
-    body_display.EdgeColor = [0.25, 0.25, 0.25]
-    body_display.Opacity = request["body_opacity"]
-    colour_array = request["colour_array"]
-    if colour_array in cell_arrays:
-        simple.ColorBy(body_display, ("CELLS", colour_array))
-        lookup_table = simple.GetColorTransferFunction(colour_array)
-        lookup_table.ApplyPreset(request["colour_map"], True)
-        lookup_table.AutomaticRescaleRangeMode = "Never"
-        lookup_table.RescaleTransferFunction(*request["colour_range"])
-        bar = simple.GetScalarBar(lookup_table, view)
-        bar.Title = request["colour_title"]
-        bar.ComponentTitle = ""
-        bar.TitleColor = [0.0, 0.0, 0.0]
-        bar.LabelColor = [0.0, 0.0, 0.0]
-        bar.TitleFontSize = max(6, round(18 * font_scale))
-        bar.LabelFontSize = max(6, round(16 * font_scale))
-        # Five round labels from end to end instead of ParaView's dense automatic ones.
-        bar.UseCustomLabels = 1
-        bar.CustomLabels = numpy.linspace(*request["colour_range"], 5).tolist()
-        bar.AddRangeLabels = 0
-        bar.AutomaticLabelFormat = 0
-        bar.LabelFormat = "%.3g"
-        bar.WindowLocation = "Any Location"
-        bar.Position = [0.88, 0.1]
-        bar.ScalarBarLength = 0.8
-        body_display.SetScalarBarVisibility(view, True)
-    else:
-        simple.ColorBy(body_display, None)
-        body_display.AmbientColor = body_display.DiffuseColor = [0.7, 0.7, 0.7]
-
-    if inverted_cells:
-        inverted = simple.Threshold(Input=body, Scalars=["CELLS", "inverted"])
-        inverted.LowerThreshold = 0.5
-        inverted.UpperThreshold = 1.5
-        inverted.ThresholdMethod = "Between"
-        inverted_display = simple.Show(inverted, view)
-        simple.ColorBy(inverted_display, None)
-        inverted_display.Representation = "Surface With Edges"
-        inverted_display.AmbientColor = inverted_display.DiffuseColor = request["inverted_colour"]
-        inverted_display.EdgeColor = [0.35, 0.0, 0.0]
-        # Some ambient light keeps the faces turned away from the light recognisably red.
-        inverted_display.Ambient = 0.35
-
-    bounds = data.GetBounds()
-    sizes = [bounds[2 * axis + 1] - bounds[2 * axis] for axis in range(3)]
-    # A flat (2D) body: its zero thickness says nothing.
-    extent = " x ".join(f"{size:.3g}" for size in (sizes if sizes[2] > 0 else sizes[:2]))
-    text = request["label"].format(time=time, inverted=inverted_cells or 0, extent=extent)
-    label = simple.Text(Text=text)
-    label_display = simple.Show(label, view)
-    label_display.WindowLocation = "Upper Left Corner"
-    label_display.Color = [0.0, 0.0, 0.0]
-    label_display.FontSize = max(6, round(18 * font_scale))
-    label_display.Justification = "Left"
-
+        values = dataset_adapter.WrapDataObject(fetch(reader, time)).CellData["inverted"]
+        inverted_now = int(numpy.count_nonzero(numpy.asarray(values) > 0.5))
+    picture = Picture(request, reader, cell_arrays, point_arrays, time, bool(inverted_now))
+    data, inverted_cells = picture.show(time)
     # paraview.simple resets the camera on a view's first render: render once before framing.
-    simple.Render(view)
-    frame_camera(view, numpy.asarray(dataset_adapter.WrapDataObject(data).Points), width / height)
-    simple.SaveScreenshot(
-        request["png"], view, ImageResolution=[width, height], TransparentBackground=0
+    simple.Render(picture.view)
+    width, height = request["size"]
+    frame_camera(
+        picture.view, picture.framed_points(data), width / height, request["view_direction"]
     )
+    picture.save(request["png"])
     return {
         "png": request["png"],
         "time": time,
         "inverted_cells": inverted_cells,
-        "bounds": [float(value) for value in bounds],
+        "bounds": [float(value) for value in data.GetBounds()],
         "paraview_version": paraview_version(),
     }
 
 
-COMMANDS = {"inspect": inspect, "render": render}
+def animate(request):
+    """One picture per time of ``request["times"]``, the camera fixed on all of them."""
+    reader, times = open_series(request["path"])
+    cell_arrays = list(reader.CellArrays)
+    point_arrays = list(reader.PointArrays)
+    frames = [choose_time(reader, times, wanted, request["path"]) for wanted in request["times"]]
+    picture = Picture(request, reader, cell_arrays, point_arrays, frames[0], True)
+    points = []
+    for index, time in enumerate(frames):
+        data, _ = picture.show(time, index)
+        points.append(picture.framed_points(data))
+    simple.Render(picture.view)
+    width, height = request["size"]
+    frame_camera(picture.view, numpy.vstack(points), width / height, request["view_direction"])
+    pngs = []
+    for index, time in enumerate(frames):
+        picture.show(time, index)
+        png = request["png_pattern"].format(index=index)
+        picture.save(png)
+        pngs.append(png)
+    return {"pngs": pngs, "times": frames, "paraview_version": paraview_version()}
+
+
+COMMANDS = {"inspect": inspect, "render": render, "animate": animate}
 
 
 def main(argv):
