@@ -224,13 +224,13 @@ def run_scene(
         raise ValueError(f"--checkpoint-every must be an integer >= 1, got {checkpoint_every!r}")
     checkpoint_state = None
     if resume:
-        if not scene_class.dynamic or output is None:
+        if not scene_class.dynamic:
             raise ValueError(
-                "--resume continues dynamic scenes that wrote an output directory; "
-                f"{scene_class.name} is quasi-static"
-                if not scene_class.dynamic
-                else "--resume needs the output directory of the run"
+                f"--resume: {scene_class.name} is quasi-static; only dynamic scenes write "
+                "checkpoints"
             )
+        if output is None:
+            raise ValueError("--resume needs the output directory of the run")
         checkpoint_state = check_resumable(output, scene_class.name, parameters)
     if output is not None:
         check_output_directory(output, comm)
