@@ -3,8 +3,10 @@
 The checkpoint of a dynamic scene (``dolfinx_invertible.scenes.checkpoints``) holds the
 displacement and velocity of the current and the previous step, P1 on the mesh, and a small
 JSON state; this writes exactly those four fields with
-``dolfinx_invertible.io.checkpoint.write_checkpoint`` five times (median and smallest time)
-and reads them back once. Run from the repository root, serially or under MPI::
+``dolfinx_invertible.io.checkpoint.write_checkpoint`` five times (median and smallest time),
+reads them back once, and times each rank's part written after every step
+(``write_checkpoint_part``, not synced; the slowest rank). Run from the repository root,
+serially or under MPI::
 
     python -m benchmarks.checkpoint --resolution 26            # 105 456 tetrahedra
     mpirun -n 2 python -m benchmarks.checkpoint --resolution 26
@@ -21,7 +23,12 @@ import dolfinx
 import numpy as np
 
 from dolfinx_invertible import vector_function_space
-from dolfinx_invertible.io.checkpoint import read_checkpoint, write_checkpoint
+from dolfinx_invertible.io.checkpoint import (
+    owned_nodes,
+    read_checkpoint,
+    write_checkpoint,
+    write_checkpoint_part,
+)
 
 FIELDS = ("displacement", "velocity", "older_displacement", "older_velocity")
 
@@ -54,13 +61,23 @@ def main() -> None:
     read_checkpoint(path, fields, comm)
     comm.barrier()
     read = time.perf_counter() - start
+    part = Path(folder) / f"part-{comm.rank}.npz"
+    part_times = []
+    for _ in range(arguments.repeat):
+        start = time.perf_counter()
+        nodes = {name: owned_nodes(function) for name, function in fields.items()}
+        write_checkpoint_part(part, nodes, {"time": 0.1}, sync=False)
+        part_times.append(time.perf_counter() - start)
+    part_time = comm.allreduce(float(np.median(part_times)), op=MPI.MAX)
+    comm.barrier()
+    part.unlink()
     if comm.rank == 0:
         cells = mesh.topology.index_map(3).size_global
         unknowns = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
         print(
             f"ranks {comm.size}  cells {cells}  unknowns {unknowns}  write median "
             f"{np.median(times):.3f} s (min {min(times):.3f} s)  read {read:.3f} s  "
-            f"size {size / 1e6:.2f} MB"
+            f"size {size / 1e6:.2f} MB  part per step {part_time:.3f} s"
         )
         path.unlink()
         Path(folder).rmdir()

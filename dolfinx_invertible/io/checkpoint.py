@@ -3,7 +3,9 @@
 A checkpoint is one NumPy ``.npz`` file that rank 0 writes under a temporary name and renames
 into place, so a run killed at any instant leaves the previous checkpoint or the new one, never
 half of one. It holds, for every Function, the coordinates of its degrees-of-freedom nodes and
-their values, gathered from all ranks, and the caller's state as JSON.
+their values, gathered from all ranks, and the caller's state as JSON. Where the ranks must not
+communicate, each writes its own part (:func:`write_checkpoint_part`), and the parts are read
+together.
 
 Nodes are matched by their coordinates when a checkpoint is read, so a run may continue on
 another number of ranks (another partition, another local numbering) and on any supported
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +25,14 @@ from mpi4py import MPI
 
 import numpy as np
 
-__all__ = ["CheckpointError", "read_checkpoint", "read_state", "write_checkpoint"]
+__all__ = [
+    "CheckpointError",
+    "owned_nodes",
+    "read_checkpoint",
+    "read_state",
+    "write_checkpoint",
+    "write_checkpoint_part",
+]
 
 #: Coordinates are matched after rounding to this fraction of the mesh's extent.
 MATCH_TOLERANCE = 1e-10
@@ -33,7 +42,8 @@ class CheckpointError(ValueError):
     """A checkpoint that is missing, unreadable or made on another mesh."""
 
 
-def _owned_nodes(function) -> tuple[np.ndarray, np.ndarray]:
+def owned_nodes(function) -> tuple[np.ndarray, np.ndarray]:
+    """Return the coordinates (n, 3) and values (n, block) of the rank's owned nodes (views)."""
     space = function.function_space
     owned = space.dofmap.index_map.size_local
     block = space.dofmap.index_map_bs
@@ -52,7 +62,7 @@ def write_checkpoint(
     path = Path(path)
     gathered = {}
     for name, function in functions.items():
-        coordinates, values = _owned_nodes(function)
+        coordinates, values = owned_nodes(function)
         parts = comm.gather((coordinates, values), root=0)
         if comm.rank == 0:
             gathered[f"{name}.coordinates"] = np.concatenate([part[0] for part in parts])
@@ -76,6 +86,35 @@ def write_checkpoint(
     return comm.bcast(size, root=0)
 
 
+def write_checkpoint_part(
+    path: str | Path,
+    nodes: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    state: Mapping[str, Any],
+    *,
+    sync: bool = True,
+) -> int:
+    """Write one rank's share of a checkpoint, with no communication; return its bytes.
+
+    ``nodes`` maps a field's name to the coordinates and values of the rank's owned nodes
+    (:func:`owned_nodes`). :func:`read_checkpoint` reads the parts of all ranks together.
+    Written under a temporary name and renamed into place, like a whole checkpoint; ``sync``
+    also waits for the disk (a killed process loses nothing either way, a crashed machine may).
+    """
+    path = Path(path)
+    arrays = {}
+    for name, (coordinates, values) in nodes.items():
+        arrays[f"{name}.coordinates"] = coordinates
+        arrays[f"{name}.values"] = values
+    temporary = path.with_name(f".{path.name}.tmp")
+    with open(temporary, "wb") as file:
+        np.savez(file, state=np.array(json.dumps(dict(state))), **arrays)
+        if sync:
+            file.flush()
+            os.fsync(file.fileno())
+    os.replace(temporary, path)
+    return path.stat().st_size
+
+
 def read_state(path: str | Path) -> dict[str, Any]:
     """Return the JSON state of a checkpoint (any rank, no communication)."""
     path = Path(path)
@@ -88,23 +127,34 @@ def read_state(path: str | Path) -> dict[str, Any]:
         raise CheckpointError(f"cannot read the checkpoint {path}: {error}") from None
 
 
-def read_checkpoint(path: str | Path, functions: Mapping[str, Any], comm) -> dict[str, Any]:
-    """Set the Functions from the checkpoint at ``path``; return its state (collective).
+def read_checkpoint(
+    path: str | Path | Sequence[str | Path], functions: Mapping[str, Any], comm
+) -> dict[str, Any]:
+    """Set the Functions from a checkpoint; return its state (collective).
+
+    ``path`` is one file (:func:`write_checkpoint`) or the parts of all ranks
+    (:func:`write_checkpoint_part`), read together; the state is the first file's.
 
     Raises
     ------
     CheckpointError
-        On every rank: the file is missing or unreadable, lacks a Function, or a node of this
+        On every rank: a file is missing or unreadable, lacks a Function, or a node of this
         mesh is not in it (another mesh, degree or size).
     """
-    path = Path(path)
+    paths = [Path(path)] if isinstance(path, (str, Path)) else [Path(p) for p in path]
     error = None
     try:
-        state = read_state(path)
-        with np.load(path) as data:
-            for name, function in functions.items():
-                _set_from(function, name, data, path)
-    except CheckpointError as exception:
+        state = read_state(paths[0])
+        for name, function in functions.items():
+            stored, values = [], []
+            for part in paths:
+                with np.load(part) as data:
+                    if f"{name}.coordinates" not in data:
+                        raise CheckpointError(f"the checkpoint {part} has no field {name!r}")
+                    stored.append(data[f"{name}.coordinates"])
+                    values.append(data[f"{name}.values"])
+            _set_from(function, name, np.concatenate(stored), np.concatenate(values), paths[0])
+    except (CheckpointError, OSError, ValueError) as exception:
         error = str(exception)
     errors = comm.allgather(error)
     message = next((message for message in errors if message is not None), None)
@@ -113,11 +163,7 @@ def read_checkpoint(path: str | Path, functions: Mapping[str, Any], comm) -> dic
     return state
 
 
-def _set_from(function, name: str, data, path: Path) -> None:
-    if f"{name}.coordinates" not in data:
-        raise CheckpointError(f"the checkpoint {path} has no field {name!r}")
-    stored = data[f"{name}.coordinates"]
-    values = data[f"{name}.values"]
+def _set_from(function, name: str, stored: np.ndarray, values: np.ndarray, path: Path) -> None:
     space = function.function_space
     coordinates = space.tabulate_dof_coordinates()
     block = space.dofmap.index_map_bs

@@ -6,22 +6,35 @@ and the previous step (BDF2 needs both), the time, the step controller's state, 
 solver escalated, the run's counts, the scene's own scalar state (contact statistics, say),
 the parameters and the number of steps written. ``run SCENE --resume DIR`` builds the same run,
 reads the checkpoint into it (:func:`restore_run`, on any number of ranks), truncates the XDMF
-file and the step log to the checkpoint's step and goes on from there.
+file and the step log to the checkpoint's step and goes on from there. After every step each
+rank also writes its part of the state, with no communication (:class:`StepParts`), so a run
+killed at any instant, or stopped by a signal, continues from its last completed step;
+resuming takes whichever is newer (:func:`latest_checkpoint`).
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from time import perf_counter
 from typing import Any
 
-from dolfinx_invertible.io.checkpoint import read_checkpoint, read_state, write_checkpoint
+from dolfinx_invertible.io.checkpoint import (
+    CheckpointError,
+    owned_nodes,
+    read_checkpoint,
+    read_state,
+    write_checkpoint,
+    write_checkpoint_part,
+)
 from dolfinx_invertible.scenes.parameters import Parameters
 from dolfinx_invertible.scenes.run import Run
 
 __all__ = [
     "CHECKPOINT_NAME",
+    "StepParts",
     "check_resumable",
+    "latest_checkpoint",
     "restore_run",
     "write_run_checkpoint",
 ]
@@ -43,9 +56,8 @@ def _scene_state(scene) -> dict[str, Any]:
     }
 
 
-def write_run_checkpoint(run: Run, output: Path, steps_written: int) -> int:
-    """Write the run's checkpoint into ``output`` (collective); return its size in bytes."""
-    state = {
+def _run_state(run: Run, steps_written: int) -> dict[str, Any]:
+    return {
         "version": _VERSION,
         "scene": run.scene.name,
         "parameters": run.parameters.as_dict(),
@@ -56,9 +68,83 @@ def write_run_checkpoint(run: Run, output: Path, steps_written: int) -> int:
         "elapsed": perf_counter() - run.started,
         "scene_state": _scene_state(run.scene),
     }
+
+
+def write_run_checkpoint(run: Run, output: Path, steps_written: int) -> int:
+    """Write the run's checkpoint into ``output`` (collective); return its size in bytes."""
     return write_checkpoint(
-        output / CHECKPOINT_NAME, run.dynamics.checkpoint_fields(), state, run.mesh.comm
+        output / CHECKPOINT_NAME,
+        run.dynamics.checkpoint_fields(),
+        _run_state(run, steps_written),
+        run.mesh.comm,
     )
+
+
+class StepParts:
+    """Each rank's part of the run's state after every step, with no communication.
+
+    A kill (SIGKILL, a lost node, a scheduler's time limit) or a signal can reach the ranks at
+    different points, even inside a collective call, where nothing collective can follow; so
+    after every completed step each rank writes its own share of the state (the four fields'
+    owned nodes, the state as JSON) to a file of its own. Two generations alternate (even and
+    odd steps): the ranks pass a collective call in every step, so when one rank writes step
+    k + 1, every rank has written step k, and one generation is always complete. Not synced to
+    disk (the operating system writes it out; only a crash of the machine loses it): the cost
+    is copying the fields, e.g. 0.01 s a step at 10⁵ cells.
+    """
+
+    def __init__(self, output: Path, rank: int, size: int) -> None:
+        self.output, self.rank, self.size = output, rank, size
+        self._coordinates: dict[str, Any] = {}
+
+    def write(self, run: Run, steps_written: int) -> None:
+        """Write this rank's part of the state after the step (at a step boundary)."""
+        nodes = {}
+        for name, function in run.dynamics.checkpoint_fields().items():
+            coordinates, values = owned_nodes(function)
+            nodes[name] = (self._coordinates.setdefault(name, coordinates.copy()), values)
+        path = self.output / _part_name(self.rank, self.size, steps_written % 2)
+        write_checkpoint_part(path, nodes, _run_state(run, steps_written), sync=False)
+
+
+def _part_name(rank: int, size: int, generation: int) -> str:
+    return f"checkpoint-part-{generation}-{rank}-of-{size}.npz"
+
+
+_PART = re.compile(r"checkpoint-part-(?P<generation>[01])-(?P<rank>\d+)-of-(?P<size>\d+)\.npz")
+
+
+def latest_checkpoint(output: Path) -> tuple[list[Path], dict[str, Any]]:
+    """Return the files and the state of the newest complete checkpoint in ``output``.
+
+    The whole checkpoint, or a generation of the ranks' parts (:class:`StepParts`) if every
+    rank's part is there with the same step and it is newer. ``CheckpointError`` if there is
+    none.
+    """
+    candidates = []
+    whole = output / CHECKPOINT_NAME
+    if whole.exists():
+        candidates.append(([whole], read_state(whole)))
+    # Parts of an earlier run on another number of ranks may be there too: every generation
+    # of every rank count is a candidate.
+    groups = set()
+    for path in output.glob("checkpoint-part-*.npz"):
+        match = _PART.fullmatch(path.name)
+        if match is not None:
+            groups.add((int(match["generation"]), int(match["size"])))
+    for generation, size in sorted(groups):
+        expected = [output / _part_name(rank, size, generation) for rank in range(size)]
+        if not all(path.exists() for path in expected):
+            continue
+        try:
+            states = [read_state(path) for path in expected]
+        except CheckpointError:  # a part the kill left half-written: the other generation
+            continue
+        if all(state["steps_written"] == states[0]["steps_written"] for state in states):
+            candidates.append((expected, states[0]))
+    if not candidates:
+        return [whole], read_state(whole)  # raises: no checkpoint at ...
+    return max(candidates, key=lambda candidate: candidate[1]["steps_written"])
 
 
 def check_resumable(output: Path, scene_name: str, parameters: Parameters) -> dict[str, Any]:
@@ -66,7 +152,7 @@ def check_resumable(output: Path, scene_name: str, parameters: Parameters) -> di
 
     The run must be the same scene with the same parameters, except ``t_end``, which may grow.
     """
-    state = read_state(output / CHECKPOINT_NAME)
+    _, state = latest_checkpoint(output)
     if state.get("version") != _VERSION:
         raise ValueError(f"{output / CHECKPOINT_NAME}: a checkpoint of another version")
     if state["scene"] != scene_name:
@@ -95,9 +181,8 @@ def check_resumable(output: Path, scene_name: str, parameters: Parameters) -> di
 
 def restore_run(run: Run, output: Path) -> dict[str, Any]:
     """Set the built run to its checkpoint in ``output`` (collective); return the state."""
-    state = read_checkpoint(
-        output / CHECKPOINT_NAME, run.dynamics.checkpoint_fields(), run.mesh.comm
-    )
+    files, _ = latest_checkpoint(output)
+    state = read_checkpoint(files, run.dynamics.checkpoint_fields(), run.mesh.comm)
     run.dynamics.restore(state["dynamics"])
     for name in _COUNTS:
         setattr(run, name, state["run"][name])

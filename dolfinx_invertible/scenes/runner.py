@@ -10,7 +10,8 @@ The output of a run in its directory (``results/SCENE/`` by default):
   failure or an interrupt (``completed`` false and the reason given); the previous run's summary
   is removed when a run starts, so a summary never belongs to another run;
 - ``checkpoint.npz`` (dynamic scenes, with ``checkpoint_every``): the state to continue from
-  (:mod:`.checkpoints`);
+  (:mod:`.checkpoints`), and ``checkpoint-part-G-R-of-N.npz``, each rank's part of the state
+  after each of the last two steps;
 - scene-specific extras (e.g. ``trajectories.npy``).
 """
 
@@ -36,6 +37,7 @@ from dolfinx_invertible.fem.spaces import vector_function_space
 from dolfinx_invertible.io.step_log import json_ready
 from dolfinx_invertible.io.xdmf import ResultWriter
 from dolfinx_invertible.scenes.checkpoints import (
+    StepParts,
     check_resumable,
     restore_run,
     write_run_checkpoint,
@@ -293,6 +295,7 @@ def run_scene(
     if checkpoint_state is not None:
         restore_run(run, output)
     checkpoints = checkpoint_every if scene.dynamic and output is not None else None
+    parts = StepParts(output, comm.rank, comm.size) if checkpoints is not None else None
     writer = None
     if output is not None:
         writer = ResultWriter(
@@ -322,9 +325,11 @@ def run_scene(
                 with signals.deferred():
                     _record(run, writer, result)
                 scene.record(run)
-                if checkpoints is not None and run.steps % checkpoints == 0:
+                if checkpoints is not None:
                     with signals.deferred():
-                        write_run_checkpoint(run, output, writer.steps_written)
+                        if run.steps % checkpoints == 0:
+                            write_run_checkpoint(run, output, writer.steps_written)
+                        parts.write(run, writer.steps_written)
                 progress.update(
                     t, newton=result.newton_iterations, inverted=run.diagnostics["inverted_cells"]
                 )

@@ -2,9 +2,9 @@
 
 The runs are separate processes (``dolfinx-invertible run``, under ``mpirun`` for two ranks),
 killed with SIGKILL (mpirun and every rank) once the step log has reached a step drawn at
-random, and continued with ``--resume``. The final states are compared node by node through
-the final checkpoints (nodes matched by coordinates, so runs on different rank counts compare
-too) and through the written XDMF series.
+random, and continued with ``--resume`` from the last step every rank wrote its part of. The
+final states are compared node by node through the final checkpoints (nodes matched by
+coordinates, so runs on different rank counts compare too) and through the written XDMF series.
 """
 
 from __future__ import annotations
@@ -26,7 +26,13 @@ import pytest
 
 from dolfinx_invertible import vector_function_space
 from dolfinx_invertible.io import paraview
-from dolfinx_invertible.io.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from dolfinx_invertible.io.checkpoint import (
+    CheckpointError,
+    read_checkpoint,
+    write_checkpoint,
+    write_checkpoint_part,
+)
+from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
 
 COMMAND = [sys.executable, "-m", "dolfinx_invertible", "run", "collapse", "--quiet"]
 #: The collapse at resolution 4: 40 steps, a checkpoint every 3.
@@ -117,7 +123,8 @@ def test_a_killed_run_resumes_to_the_end_of_the_same_run(
     assert not (folder / "summary.json").exists()
     with np.load(folder / "checkpoint.npz") as data:
         resumed_from = json.loads(str(data["state"]))["steps_written"]
-    assert resumed_from <= written and resumed_from % 3 == 1  # every 3 steps, plus step 0
+    # Every rank's part after every step, two generations: at most the step in flight is lost.
+    assert written - 2 <= resumed_from <= written
 
     completed = subprocess.run(
         [*launchers[resumed_on], *COMMAND, "--resume", str(folder)],
@@ -210,3 +217,32 @@ def test_a_checkpoint_reads_back_on_any_partition(directory, degree):
     wrong = dolfinx.fem.Function(vector_function_space(coarser, degree))
     with pytest.raises(CheckpointError, match="made on another mesh: no 'u' node at"):
         read_checkpoint(path, {"u": wrong}, comm)
+
+
+def _part(folder, generation, rank, size, steps_written):
+    state = {"version": 1, "steps_written": steps_written}
+    nodes = {"u": (np.zeros((1, 3)), np.zeros((1, 3)))}
+    write_checkpoint_part(
+        folder / f"checkpoint-part-{generation}-{rank}-of-{size}.npz", nodes, state, sync=False
+    )
+
+
+def test_the_newest_complete_set_of_parts_is_taken(tmp_path):
+    whole = {"version": 1, "steps_written": 10}
+    write_checkpoint(tmp_path / "checkpoint.npz", {}, whole, MPI.COMM_SELF)
+    assert latest_checkpoint(tmp_path)[1]["steps_written"] == 10
+    for rank in range(2):  # two ranks: steps 13 and 14 complete
+        _part(tmp_path, 1, rank, 2, 13)
+        _part(tmp_path, 0, rank, 2, 14)
+    files, state = latest_checkpoint(tmp_path)
+    assert state["steps_written"] == 14 and [f.name for f in files] == [
+        "checkpoint-part-0-0-of-2.npz", "checkpoint-part-0-1-of-2.npz"]  # fmt: skip
+    _part(tmp_path, 1, 0, 2, 15)  # killed while rank 1 wrote its part of step 15
+    assert latest_checkpoint(tmp_path)[1]["steps_written"] == 14
+    (tmp_path / "checkpoint-part-0-1-of-2.npz").write_bytes(b"half a file")
+    assert latest_checkpoint(tmp_path)[1]["steps_written"] == 10  # 13 was overwritten by 15
+    for generation, steps in ((0, 16), (1, 17)):  # resumed on three ranks, further on
+        for rank in range(3):
+            _part(tmp_path, generation, rank, 3, steps)
+    files, state = latest_checkpoint(tmp_path)
+    assert state["steps_written"] == 17 and len(files) == 3
