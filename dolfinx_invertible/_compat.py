@@ -14,6 +14,7 @@ except ImportError:
     pass
 
 import dolfinx  # noqa: E402  (after the wheel's MPI)
+import dolfinx.common
 import dolfinx.fem
 import dolfinx.io
 import numpy as np
@@ -31,6 +32,8 @@ __all__ = [
     "XDMF_XINCLUDE_NAMESPACE",
     "KSP_CONVERGED_NEGATIVE_CURVATURE",
     "SNES_DIVERGED_NOT_FINITE",
+    "VTX_AVAILABLE",
+    "vtx_writer",
 ]
 
 DOLFINX_VERSION = tuple(int(part) for part in dolfinx.__version__.split(".")[:2])
@@ -405,3 +408,18 @@ def form_compilation_options(form_compiler_options: dict | None, jit_options: di
     if jit_options is not None:
         options["jit_options" if new_names else "jit_params"] = jit_options
     return options
+
+
+#: Whether DOLFINx writes ADIOS2 VTX files (built with ADIOS2; Debian bookworm's 0.5.2 is not).
+VTX_AVAILABLE = bool(getattr(dolfinx.common, "has_adios2", False)) and hasattr(
+    dolfinx.io, "VTXWriter"
+)
+
+
+def vtx_writer(comm, path, functions):
+    """Return a ``VTXWriter`` (BP4) of ``functions`` that writes the mesh once."""
+    options = {}
+    policy = getattr(dolfinx.io, "VTXMeshPolicy", None)
+    if policy is not None:
+        options["mesh_policy"] = policy.reuse
+    return dolfinx.io.VTXWriter(comm, str(path), list(functions), engine="BP4", **options)

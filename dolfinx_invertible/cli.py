@@ -101,6 +101,7 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
         EXTENSION_NAMES,
         LINEAR_SOLVERS,
         MODEL_NAMES,
+        OUTPUT_FORMATS,
         PRECONDITIONERS,
         PROJECT_CHOICES,
         Parameters,
@@ -205,6 +206,11 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     output.add_argument("--quiet", action="store_true", help="no progress bar")
     output.add_argument("--verbose", action="store_true", help="show compiler and solver "
                         "chatter (FFCx, cffi, numba warnings)")  # fmt: skip
+    output.add_argument("--format", choices=list(OUTPUT_FORMATS), default="xdmf",
+                        dest="output_format", help="xdmf (ParaView's XDMF3 reader, every "
+                        "DOLFINx), vtx (ADIOS2 VTX: the displacement at full order; needs "
+                        "DOLFINx with ADIOS2, not bookworm's 0.5.2) or both "
+                        "(default: xdmf)")  # fmt: skip
     if scene.dynamic:
         output.add_argument("--checkpoint-every", type=int, metavar="N", default=10,
                             dest="checkpoint_every", help="write DIR/checkpoint.npz every N "
@@ -339,6 +345,7 @@ def _run(arguments: argparse.Namespace) -> int:
             comm=comm,
             checkpoint_every=getattr(arguments, "checkpoint_every", 0) or None,
             resume=resume is not None,
+            output_format=arguments.output_format,
         )
     except ValueError as error:
         if arguments.verbose:

@@ -46,7 +46,7 @@ class CompressBlock(Scene):
 
     def boundary_conditions(self, space):
         """Fix the base; the plate moves with time."""
-        mesh, size = space.mesh, self.parameters.size
+        mesh = space.mesh
         base = dolfinx.mesh.locate_entities_boundary(mesh, 2, lambda x: np.isclose(x[2], 0.0))
         bcs = [
             dolfinx.fem.dirichletbc(
@@ -56,10 +56,18 @@ class CompressBlock(Scene):
         t_end = self.parameters.t_end
 
         def update(t: float) -> None:
-            fraction = smooth_ramp(t, PRESS * t_end)
-            self._plate.set(DEPTH * 0.5 * size * fraction, released=t > RELEASE * t_end)
+            self._plate.set(self.plate_depth(t), released=t > RELEASE * t_end)
 
         return bcs, update
+
+    def plate_depth(self, t: float) -> float:
+        """Return how far the plate has pressed the top face down at time t."""
+        fraction = smooth_ramp(t, PRESS * self.parameters.t_end)
+        return DEPTH * 0.5 * self.parameters.size * fraction
+
+    def drawn_obstacles(self) -> list:
+        """Return the plate as pictures draw it: a slab over the pressed square."""
+        return [_DrawnPlate(self)]
 
     def external_energy(self, u):
         """Return the plate's penalty potential on the middle of the top face."""
@@ -77,3 +85,29 @@ class CompressBlock(Scene):
             mesh, facets, (0.0, 0.0, -1.0), self.parameters.E, mean_cell_size(mesh)
         )
         return self._plate.energy(u)
+
+
+class _DrawnPlate:
+    """The plate for pictures: a slab of a tenth of the block's size on the pressed square.
+
+    Its bottom is where the plate holds the top face; once released it is drawn lifted clear
+    of the block (the penalty is off: nothing presses). ``gap`` is the slab's signed distance.
+    """
+
+    #: It moves: an animation samples it at every frame.
+    motion = True
+
+    def __init__(self, scene: CompressBlock):
+        self.scene = scene
+
+    def gap(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+        size, t_end = self.scene.parameters.size, self.scene.parameters.t_end
+        thickness = 0.1 * size
+        bottom = 0.5 * size - self.scene.plate_depth(t)
+        if t > RELEASE * t_end:
+            bottom = 0.5 * size + thickness
+        centre = np.array([0.5 * size, 0.5 * size, bottom + 0.5 * thickness])
+        half = np.array([0.25 * size, 0.25 * size, 0.5 * thickness])
+        q = np.abs(np.asarray(x) - centre) - half
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+        return outside + np.minimum(q.max(axis=1), 0.0)

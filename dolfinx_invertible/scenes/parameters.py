@@ -20,7 +20,14 @@ from dolfinx_invertible.constitutive import (
     lame,
 )
 
-__all__ = ["EXTENSION_NAMES", "MODEL_NAMES", "PROJECT_CHOICES", "Parameters", "make_material"]
+__all__ = [
+    "EXTENSION_NAMES",
+    "MODEL_NAMES",
+    "OUTPUT_FORMATS",
+    "PROJECT_CHOICES",
+    "Parameters",
+    "make_material",
+]
 
 #: Command-line model names and the classes they stand for.
 MODEL_NAMES = {
@@ -38,6 +45,8 @@ EXTENSION_NAMES = {"none": None, "c1": C1, "c2": C2, "ife": IFE}
 LINEAR_SOLVERS = ("auto", "direct", "iterative")
 #: ``--pc`` choices: the preconditioners of the iterative path.
 PRECONDITIONERS = ("gamg", "hypre")
+#: ``--format`` choices: XDMF, ADIOS2 VTX, or both (see :func:`~.runner.run_scene`).
+OUTPUT_FORMATS = ("xdmf", "vtx", "both")
 
 #: ``--project`` choices and the value HyperelasticProblem takes.
 PROJECT_CHOICES = {"auto": "auto", "yes": True, "no": False}

@@ -39,17 +39,14 @@ def _run_scene(directory: Path) -> tuple[str, dict[str, Any]] | None:
 
 
 def run_obstacles(directory: str | Path) -> list:
-    """Return the obstacles of the scene that ran in ``directory`` (empty if it has none)."""
+    """Return what the scene that ran in ``directory`` draws beside its body (may be empty)."""
     from dolfinx_invertible.scenes import get_scene
 
     found = _run_scene(Path(directory))
     if found is None:
         return []
     name, parameters = found
-    scene_class = get_scene(name)
-    if not hasattr(scene_class, "obstacles"):
-        return []
-    return list(scene_class(Parameters(**parameters), MPI.COMM_SELF).obstacles())
+    return get_scene(name)(Parameters(**parameters), MPI.COMM_SELF).drawn_obstacles()
 
 
 def _series(directory: Path) -> Path:

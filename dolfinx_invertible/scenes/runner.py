@@ -35,6 +35,7 @@ import numpy as np
 from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
 from dolfinx_invertible.fem.spaces import vector_function_space
 from dolfinx_invertible.io.step_log import json_ready
+from dolfinx_invertible.io.vtx import VTX_AVAILABLE, VTXResultWriter
 from dolfinx_invertible.io.xdmf import ResultWriter
 from dolfinx_invertible.scenes.checkpoints import (
     StepParts,
@@ -44,7 +45,12 @@ from dolfinx_invertible.scenes.checkpoints import (
 )
 from dolfinx_invertible.scenes.observer import RunObserver
 from dolfinx_invertible.scenes.outcome import relaxation_outcome, rest_distance
-from dolfinx_invertible.scenes.parameters import PROJECT_CHOICES, Parameters, make_material
+from dolfinx_invertible.scenes.parameters import (
+    OUTPUT_FORMATS,
+    PROJECT_CHOICES,
+    Parameters,
+    make_material,
+)
 from dolfinx_invertible.scenes.run import Run
 from dolfinx_invertible.scenes.scene import Scene
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
@@ -179,6 +185,7 @@ def run_scene(
     problem_options: dict[str, Any] | None = None,
     checkpoint_every: int | None = None,
     resume: bool = False,
+    output_format: str = "xdmf",
 ) -> dict[str, Any]:
     """Run a scene; return its summary (written to ``output/summary.json`` too).
 
@@ -212,6 +219,10 @@ def run_scene(
     resume
         Continue the stopped run in ``output`` from its checkpoint (same scene and parameters;
         ``t_end`` may be later), appending to its XDMF file and step log.
+    output_format
+        ``"xdmf"`` (:class:`~dolfinx_invertible.io.xdmf.ResultWriter`), ``"vtx"``
+        (:class:`~dolfinx_invertible.io.vtx.VTXResultWriter`: the displacement at full
+        order; needs DOLFINx with ADIOS2) or ``"both"``.
 
     Raises
     ------
@@ -224,6 +235,20 @@ def run_scene(
         int(checkpoint_every) != checkpoint_every or checkpoint_every < 1
     ):
         raise ValueError(f"--checkpoint-every must be an integer >= 1, got {checkpoint_every!r}")
+    if output_format not in OUTPUT_FORMATS:
+        raise ValueError(
+            f"--format must be one of {', '.join(OUTPUT_FORMATS)}, got {output_format!r}"
+        )
+    if output_format != "xdmf" and not VTX_AVAILABLE:
+        raise ValueError(
+            f"--format {output_format}: VTX output needs DOLFINx built with ADIOS2, and "
+            f"DOLFINx {dolfinx.__version__} here is not: use --format xdmf"
+        )
+    if resume and output_format != "xdmf":
+        raise ValueError(
+            "--resume continues the XDMF series and the step log; VTX files are not appended "
+            "to: use --format xdmf"
+        )
     checkpoint_state = None
     if resume:
         if not scene_class.dynamic:
@@ -296,15 +321,21 @@ def run_scene(
         restore_run(run, output)
     checkpoints = checkpoint_every if scene.dynamic and output is not None else None
     parts = StepParts(output, comm.rank, comm.size) if checkpoints is not None else None
-    writer = None
-    if output is not None:
-        writer = ResultWriter(
-            output / f"{scene.name}.xdmf",
-            mesh,
-            resume=None
-            if checkpoint_state is None
-            else (checkpoint_state["steps_written"], run.time),
+    writers: list = []
+    if output is not None and output_format in ("xdmf", "both"):
+        writers.append(
+            ResultWriter(
+                output / f"{scene.name}.xdmf",
+                mesh,
+                resume=None
+                if checkpoint_state is None
+                else (checkpoint_state["steps_written"], run.time),
+            )
         )
+    if output is not None and output_format in ("vtx", "both"):
+        # The step log goes with the XDMF series, or with the VTX files if there is none.
+        log = None if writers else output / f"{scene.name}.jsonl"
+        writers.append(VTXResultWriter(output / f"{scene.name}.bp", u, log_path=log))
     dofs = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
     total = parameters.t_end if scene.dynamic else 1.0
     progress = _Progress(not quiet and comm.rank == 0, total, "s" if scene.dynamic else "load")
@@ -314,7 +345,7 @@ def run_scene(
         with _Signals() as signals:
             if checkpoint_state is None:
                 with signals.deferred():
-                    _record(run, writer, None)
+                    _record(run, writers, None)
                 scene.record(run)
             for observer in observers:
                 observer.start(run)
@@ -323,13 +354,13 @@ def run_scene(
                 run.time = t
                 run.result = result
                 with signals.deferred():
-                    _record(run, writer, result)
+                    _record(run, writers, result)
                 scene.record(run)
                 if checkpoints is not None:
                     with signals.deferred():
                         if run.steps % checkpoints == 0:
-                            write_run_checkpoint(run, output, writer.steps_written)
-                        parts.write(run, writer.steps_written)
+                            write_run_checkpoint(run, output, writers[0].steps_written)
+                        parts.write(run, writers[0].steps_written)
                 progress.update(
                     t, newton=result.newton_iterations, inverted=run.diagnostics["inverted_cells"]
                 )
@@ -342,7 +373,7 @@ def run_scene(
                 run.dynamics.advance(parameters.t_end, on_step=step_done)
                 if checkpoints is not None and run.steps % checkpoints != 0:
                     with signals.deferred():
-                        write_run_checkpoint(run, output, writer.steps_written)
+                        write_run_checkpoint(run, output, writers[0].steps_written)
             else:
                 solve_load_steps(
                     run.problem,
@@ -362,7 +393,7 @@ def run_scene(
         run.nan_encountered = run.nan_encountered or error.stage == "NaN"
     except RunInterrupted as interrupt:
         progress.close()
-        if writer is not None:
+        for writer in writers:
             writer.close()
         # Ranks may be interrupted at different points: no collective operation from here on.
         summary_data = _summary(run, dofs, completed=False, converged=True, final=None)
@@ -372,7 +403,7 @@ def run_scene(
         raise
     finally:
         progress.close()
-        if writer is not None:
+        for writer in writers:
             writer.close()
     for observer in observers:
         observer.end(run)
@@ -429,7 +460,7 @@ def _watch(run: Run, observers: list[RunObserver]) -> Callable[[StepAttempt], No
     return on_attempt
 
 
-def _record(run: Run, writer: ResultWriter | None, result: SolveResult | None) -> None:
+def _record(run: Run, writers: Sequence[Any], result: SolveResult | None) -> None:
     """Diagnostics of the current state into the run's statistics, the XDMF and the log."""
     diagnostics = cell_diagnostics(run.u, run.material)
     record = summary(diagnostics, run.mesh.comm)
@@ -457,7 +488,7 @@ def _record(run: Run, writer: ResultWriter | None, result: SolveResult | None) -
     if run.dynamics is not None:
         record["kinetic_energy"] = run.dynamics.kinetic_energy
     record["wall_time"] = perf_counter() - run.started
-    if writer is not None:
+    for writer in writers:
         # A strictly increasing time for the initial state of a quasi-static run too.
         writer.write(run.time, run.u, diagnostics, record)
 

@@ -140,6 +140,15 @@ class Scene:
         """Return step caps (e.g. continuous collision detection), built on ``u``."""
         return []
 
+    def drawn_obstacles(self) -> list:
+        """Return what pictures draw beside the body: objects with ``gap(x, t)``.
+
+        The contact scenes' obstacles by default; a scene whose loads are not obstacles (a
+        pressing plate) may give a shape to draw for them.
+        """
+        obstacles = getattr(self, "obstacles", None)
+        return list(obstacles()) if callable(obstacles) else []
+
     def problem_options(self) -> dict[str, Any]:
         """Return further options of the problem (e.g. ``quadrature_degree``)."""
         return {}

@@ -157,7 +157,12 @@ def _read_display_number(descriptor: int, timeout: float) -> str | None:
 
 
 def run_script(
-    request: dict[str, Any], executable: str | Path | None, *, timeout: float, display: bool
+    request: dict[str, Any],
+    executable: str | Path | None,
+    *,
+    timeout: float,
+    display: bool,
+    mpi: bool = False,
 ) -> dict[str, Any]:
     """Run ``pvbatch`` on ``paraview_scripts/series.py`` with ``request``; return its answer.
 
@@ -171,6 +176,8 @@ def run_script(
         Seconds before ParaView is stopped.
     display
         Whether ParaView needs an X display (a private ``Xvfb``, or the existing one).
+    mpi
+        Let ``pvbatch`` start MPI (one process): ParaView's ADIOS2 reader needs it.
 
     Returns
     -------
@@ -192,7 +199,8 @@ def run_script(
         request_path = Path(directory) / "request.json"
         result_path = Path(directory) / "result.json"
         request_path.write_text(json.dumps(request), encoding="utf-8")
-        command = [str(pvbatch), "--no-mpi", str(_SCRIPT), str(request_path), str(result_path)]
+        command = [str(pvbatch), *([] if mpi else ["--no-mpi"]), str(_SCRIPT),
+                   str(request_path), str(result_path)]  # fmt: skip
         environment = _child_environment()
         try:
             if display:

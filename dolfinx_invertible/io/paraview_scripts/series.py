@@ -124,6 +124,30 @@ def inspect(request):
     }
 
 
+def inspect_vtx(request):
+    """Time steps, arrays and their ranges per step of a VTX (ADIOS2) file, as ParaView reads it.
+
+    ParaView's ADIOS2 reader starts MPI: this request runs in a ``pvbatch`` without
+    ``--no-mpi``.
+    """
+    reader = simple.ADIOS2VTXReader(FileName=request["path"])
+    reader.UpdatePipelineInformation()
+    values = reader.TimestepValues
+    times = [float(values)] if isinstance(values, (int, float)) else [float(t) for t in values]
+    # The reader gives one block per rank's piece: one grid to summarise.
+    merged = simple.MergeBlocks(Input=reader)
+    steps = [step_summary(fetch(merged, time), time) for time in (times or [None])]
+    return {
+        "path": request["path"],
+        "reader": reader.GetXMLName(),
+        "paraview_version": paraview_version(),
+        "times": times,
+        "number_of_points": steps[0]["number_of_points"],
+        "number_of_cells": steps[0]["number_of_cells"],
+        "steps": steps,
+    }
+
+
 def paraview_version():
     """Return ParaView's full version, e.g. ``5.11.0``."""
     return simple.GetParaViewSourceVersion().split()[-1]
@@ -427,7 +451,7 @@ def animate(request):
     return {"pngs": pngs, "times": frames, "paraview_version": paraview_version()}
 
 
-COMMANDS = {"inspect": inspect, "render": render, "animate": animate}
+COMMANDS = {"inspect": inspect, "inspect_vtx": inspect_vtx, "render": render, "animate": animate}
 
 
 def main(argv):
