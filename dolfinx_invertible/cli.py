@@ -241,8 +241,7 @@ def _parameters(scene, arguments: argparse.Namespace):
 
 def _resumed_parameters(scene, arguments: argparse.Namespace):
     """Return the parameters of the run in ``--resume DIR``, with a later ``--t-end`` if given."""
-    from dolfinx_invertible.io.checkpoint import read_state
-    from dolfinx_invertible.scenes.checkpoints import CHECKPOINT_NAME
+    from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
     from dolfinx_invertible.scenes.parameters import Parameters
 
     given = [
@@ -257,7 +256,9 @@ def _resumed_parameters(scene, arguments: argparse.Namespace):
             f"--resume continues the run with its own parameters and output: drop "
             f"{', '.join(options)}"
         )
-    values = read_state(arguments.resume / CHECKPOINT_NAME)["parameters"]
+    # The newest checkpoint, whole or in the ranks' parts (a run killed before its first
+    # whole checkpoint has only these).
+    values = latest_checkpoint(arguments.resume)[1]["parameters"]
     if arguments.t_end is not None:
         values["t_end"] = arguments.t_end
     return Parameters(**values)

@@ -19,9 +19,9 @@ from typing import Any
 
 from mpi4py import MPI
 
-from dolfinx_invertible.io.checkpoint import read_state
+from dolfinx_invertible.io.checkpoint import CheckpointError
 from dolfinx_invertible.io.paraview import animate, render
-from dolfinx_invertible.scenes.checkpoints import CHECKPOINT_NAME
+from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
 from dolfinx_invertible.scenes.parameters import Parameters
 
 __all__ = ["animate_run", "render_run", "run_obstacles"]
@@ -32,10 +32,11 @@ def _run_scene(directory: Path) -> tuple[str, dict[str, Any]] | None:
     if summary.is_file():
         data = json.loads(summary.read_text(encoding="utf-8"))
         return data["scene"], data["parameters"]
-    if (directory / CHECKPOINT_NAME).is_file():
-        state = read_state(directory / CHECKPOINT_NAME)
-        return state["scene"], state["parameters"]
-    return None
+    try:
+        state = latest_checkpoint(directory)[1]
+    except CheckpointError:
+        return None
+    return state["scene"], state["parameters"]
 
 
 def run_obstacles(directory: str | Path) -> list:

@@ -179,6 +179,27 @@ def _last_step(path, steps: int) -> np.ndarray:
     return point_data["displacement"]
 
 
+def test_a_run_killed_before_its_first_whole_checkpoint_resumes_from_its_parts(tmp_path):
+    folder = tmp_path / "run"
+    process = subprocess.Popen(
+        [*COMMAND, "--resolution", "4", "--checkpoint-every", "1000", "--out", str(folder)],
+        start_new_session=True,
+        env=ENVIRONMENT,
+    )
+    log = folder / "collapse.jsonl"
+    while process.poll() is None and not (log.exists() and len(log.read_text().splitlines()) >= 8):
+        time.sleep(0.002)
+    process.kill()
+    process.wait()
+    assert not (folder / "checkpoint.npz").exists()
+    completed = subprocess.run(
+        [*COMMAND, "--resume", str(folder)], capture_output=True, text=True, timeout=600,
+        env=ENVIRONMENT,
+    )  # fmt: skip
+    assert completed.returncode == 0, completed.stderr
+    assert json.loads((folder / "summary.json").read_text())["outcome"] == "recovered"
+
+
 def test_resume_refuses_what_it_cannot_continue(tmp_path, uninterrupted):
     def run(*arguments):
         return subprocess.run([*COMMAND, *arguments], capture_output=True, text=True, timeout=600)
