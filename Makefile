@@ -8,6 +8,9 @@ APT_PACKAGES := python3-dolfinx-real python3-numba python3-gmsh python3-meshio p
 	python3-matplotlib python3-tqdm python3-scipy python3-h5py python3-venv python3-pip \
 	python3-setuptools python3-pytest-xdist \
 	openmpi-bin paraview python3-paraview python3-pil xvfb
+# What Debian does not package: IPC Toolkit, for contact between bodies (NumPy and SciPy from
+# the Debian packages satisfy its requirements).
+PYPI_PACKAGES := ipctk==1.6.1
 MPIEXEC := mpirun
 PYTEST_MPI := -q -p no:cacheprovider
 # The serial suite runs on one pytest worker per core, each test file on one worker (its module
@@ -56,6 +59,7 @@ system-packages:
 $(VENV)/.installed: pyproject.toml | system-packages
 	[ -x $(PYTHON) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
 	$(PYTHON) -m pip install -q --no-deps --no-build-isolation --config-settings editable_mode=compat -e .
+	$(PYTHON) -m pip install -q $(PYPI_PACKAGES)
 	touch $@
 
 test: lint test-serial test-mpi

@@ -353,6 +353,14 @@ def boundary_condition_dof_count(bc) -> int:
     return int(owned)
 
 
+def connectivity_array(connectivity, width: int) -> np.ndarray:
+    """Return a topology connectivity whose rows all have ``width`` entries as an (n, width) array.
+
+    Every DOLFINx keeps the flat ``array`` with offsets; only its type's name changed.
+    """
+    return np.asarray(connectivity.array, dtype=np.int32).reshape(-1, width)
+
+
 def constrained_local_dofs(bc) -> np.ndarray:
     """Return the local dof indices (owned and ghost, components unrolled) a DirichletBC fixes."""
     dofs, _ = bc.dof_indices()

@@ -195,6 +195,23 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     discretisation.add_argument("--pc", choices=list(PRECONDITIONERS), help="AMG of the "
                                 "iterative path: PETSc's GAMG or hypre's BoomerAMG (default: "
                                 f"{default('pc')})")  # fmt: skip
+    if scene.takes_friction or scene.several_bodies or scene.takes_self_contact:
+        discretisation.add_argument("--friction", type=float, metavar="MU", help="Coulomb's "
+                                    "friction coefficient of the contacts, lagged per time step "
+                                    f"(default: {default('friction'):g})")  # fmt: skip
+        discretisation.add_argument("--friction-velocity", type=float, metavar="EPS_V",
+                                    dest="friction_velocity", help="slip speed [m/s] below "
+                                    "which friction sticks (elastically) (default: "
+                                    f"{default('friction_velocity'):g})")  # fmt: skip
+    if scene.several_bodies:
+        discretisation.add_argument("--count", type=int, metavar="N", help="number of bodies "
+                                    f"(default: {default('count')})")  # fmt: skip
+    if scene.takes_self_contact or scene.self_contact_refusal:
+        discretisation.add_argument("--self-contact", action="store_const", const=True,
+                                    dest="self_contact", help="keep the body's surface from "
+                                    "passing through itself: IPC Toolkit's barrier between "
+                                    "surface primitives closer than d̂ and continuous collision "
+                                    "detection on every Newton step (docs/contact.md)")  # fmt: skip
     discretisation.add_argument("--petsc-option", action="append", default=[],
                                 metavar="NAME=VALUE", dest="petsc_option", help="a PETSc "
                                 "option of the solver, without prefix or dash, e.g. "

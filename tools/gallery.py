@@ -64,6 +64,11 @@ GALLERY = [
      "a body pushed through a narrowing tube, squeezed at the throat"),
     ("gap-squeeze", "gap-squeeze", ["--resolution", "10"], 2, "most-inverted",
      "a body squeezed between two cylinders"),
+    ("gap-squeeze-friction", "gap-squeeze", ["--friction", "0.5"], 1, "most-inverted",
+     "the turning rollers grip the body (μ = 0.5) and pull it through"),
+    ("cubes-in-bowl", "cubes-in-bowl", ["--resolution", "3"], 2, "last",
+     "8 soft cubes piled in the bowl, cube on cube through IPC Toolkit"),
+    ("links", "links", [], 1, 0.15, "a chain of rings caught on each other, stretched"),
 ]  # fmt: skip
 
 
@@ -114,6 +119,8 @@ def run_entry(entry) -> dict:
         "oscillation_amplitude",
         "min_gap",
         "penetrations",
+        "min_distance",
+        "intersections",
     ):
         if key in summary and summary[key] is not None:
             value = summary[key]

@@ -1,4 +1,4 @@
-"""Frictionless contact with analytic rigid obstacles that may move, by the IPC barrier.
+"""Frictionless contact by the IPC barrier: with analytic rigid obstacles, and between bodies.
 
 - :mod:`.motion`: :class:`RigidMotion`, a prescribed rotation and translation in time;
 - :mod:`.obstacle`: :class:`Obstacle`, the signed gap, its derivatives and path crossings;
@@ -8,12 +8,16 @@
   the collision-free step along straight paths;
 - :mod:`.barrier`: :class:`Barrier`, the log barrier b(d), and the rules for d̂ and κ;
 - :mod:`.potential`: :class:`BarrierPotential`, Σ wᵢ b(d(xᵢ)) with an SPD Hessian;
+- :mod:`.friction`: :class:`ObstacleFriction`, lagged Coulomb friction against the obstacles;
 - :mod:`.boundary`: :class:`BoundaryVertices`, the mesh's boundary vertices and weights;
 - :mod:`.term`: :class:`ContactTerm`, the barrier as an energy term of a DOLFINx problem;
-- :mod:`.step`: :class:`CollisionFreeStep`, the collision-free Newton step cap.
+- :mod:`.step`: :class:`CollisionFreeStep`, the collision-free Newton step cap;
+- :mod:`.surface`: :class:`GatheredSurface`, a distributed mesh's surface on every rank;
+- :mod:`.body_contact`: :class:`BodyContactTerm`, contact between and within the bodies of
+  one mesh on IPC Toolkit (``ipctk``), and its step cap :class:`SurfaceCollisionFreeStep`.
 
-The modules up to :mod:`.potential` need only NumPy; the last three need DOLFINx and are
-imported on first use of their names.
+The modules up to :mod:`.friction` need only NumPy; the others need DOLFINx (and the last
+ipctk) and are imported on first use of their names.
 """
 
 # The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
@@ -30,6 +34,7 @@ from dolfinx_invertible.contact.barrier import (
 )
 from dolfinx_invertible.contact.cone import Cone
 from dolfinx_invertible.contact.cylinder import Cylinder
+from dolfinx_invertible.contact.friction import ObstacleFriction
 from dolfinx_invertible.contact.funnel import Funnel
 from dolfinx_invertible.contact.half_space import HalfSpace
 from dolfinx_invertible.contact.motion import RigidMotion
@@ -39,6 +44,10 @@ from dolfinx_invertible.contact.potential import BarrierPotential, project_block
 from dolfinx_invertible.contact.sphere import Sphere
 
 _LAZY = {
+    "BodyContactTerm": "dolfinx_invertible.contact.body_contact",
+    "GatheredSurface": "dolfinx_invertible.contact.surface",
+    "SurfaceCollisionFreeStep": "dolfinx_invertible.contact.body_contact",
+    "SurfaceIntersectionError": "dolfinx_invertible.contact.body_contact",
     "BoundaryVertices": "dolfinx_invertible.contact.boundary",
     "ContactTerm": "dolfinx_invertible.contact.term",
     "CollisionFreeStep": "dolfinx_invertible.contact.step",
@@ -67,6 +76,7 @@ __all__ = [
     "Funnel",
     "HalfSpace",
     "Obstacle",
+    "ObstacleFriction",
     "Obstacles",
     "RigidMotion",
     "Sphere",

@@ -33,6 +33,7 @@ __all__ = [
     "Barrier",
     "barrier_distance",
     "barrier_stiffness",
+    "youngs_modulus_for_stiffness",
 ]
 
 #: d̂ as a share of the boundary vertex spacing h.
@@ -44,6 +45,26 @@ HALF_DISTANCE_CURVATURE = 5.0 + 2.0 * math.log(2.0)
 def barrier_distance(spacing: float, fraction: float = DEFAULT_DISTANCE_FRACTION) -> float:
     """Return d̂ = ``fraction`` × ``spacing`` (the boundary vertex spacing h)."""
     return check_positive("fraction", fraction) * check_positive("spacing", spacing)
+
+
+def youngs_modulus_for_stiffness(material=None, youngs_modulus: float | None = None) -> float:
+    """Return the E that the stiffness rules use: ``youngs_modulus``, else the material's.
+
+    Raises ``ValueError`` if neither is given or ``material`` is not a
+    :class:`~dolfinx_invertible.Material`.
+    """
+    from dolfinx_invertible.constitutive.material import Material
+
+    if youngs_modulus is None:
+        if material is None:
+            raise ValueError(
+                "the barrier stiffness needs a scale: give the material, youngs_modulus or "
+                "stiffness"
+            )
+        if not isinstance(material, Material):
+            raise ValueError(f"material must be a Material, got {material!r}")
+        youngs_modulus = material.model.youngs_modulus
+    return check_positive("youngs_modulus", youngs_modulus)
 
 
 def barrier_stiffness(youngs_modulus: float, spacing: float) -> float:

@@ -23,8 +23,10 @@ from dolfinx_invertible.contact.barrier import (
     Barrier,
     barrier_distance,
     barrier_stiffness,
+    youngs_modulus_for_stiffness,
 )
 from dolfinx_invertible.contact.boundary import BoundaryVertices
+from dolfinx_invertible.contact.friction import DEFAULT_FRICTION_VELOCITY, ObstacleFriction
 from dolfinx_invertible.contact.obstacle import Obstacle
 from dolfinx_invertible.contact.obstacles import Obstacles
 from dolfinx_invertible.contact.potential import BarrierPotential
@@ -66,6 +68,11 @@ class ContactTerm:
         (:func:`~dolfinx_invertible.contact.barrier.barrier_stiffness`).
     time
         The time at which the obstacles are evaluated until :meth:`set_time` changes it.
+    friction
+        Coulomb's coefficient μ against the obstacles (0: frictionless), lagged per time step
+        (:class:`~dolfinx_invertible.contact.friction.ObstacleFriction`).
+    friction_velocity
+        ε_v [m/s]: slower sliding sticks (elastically).
 
     Attributes
     ----------
@@ -90,6 +97,8 @@ class ContactTerm:
         distance_fraction: float = DEFAULT_DISTANCE_FRACTION,
         stiffness: float | None = None,
         time: float = 0.0,
+        friction: float = 0.0,
+        friction_velocity: float = DEFAULT_FRICTION_VELOCITY,
     ) -> None:
         self.u = u
         self.obstacles = Obstacles(obstacles)
@@ -103,28 +112,31 @@ class ContactTerm:
         if distance is None:
             distance = barrier_distance(spacing, distance_fraction)
         if stiffness is None:
-            if youngs_modulus is None:
-                if material is None:
-                    raise ValueError(
-                        "the barrier stiffness needs a scale: give the material, "
-                        "youngs_modulus or stiffness"
-                    )
-                if not isinstance(material, Material):
-                    raise ValueError(f"material must be a Material, got {material!r}")
-                youngs_modulus = material.model.youngs_modulus
-            stiffness = barrier_stiffness(youngs_modulus, spacing)
+            stiffness = barrier_stiffness(
+                youngs_modulus_for_stiffness(material, youngs_modulus), spacing
+            )
         self.barrier = Barrier(distance, stiffness)
         self.potential = BarrierPotential(self.obstacles, self.barrier)
         self.comm = u.function_space.mesh.comm
-        self.time = 0.0
+        self.friction = ObstacleFriction(friction, friction_velocity) if friction > 0.0 else None
+        self.time = float(time)
         self.set_time(time)
 
     # -- state --------------------------------------------------------------------------------
     def set_time(self, t: float) -> None:
-        """Evaluate the obstacles at time ``t`` from now on (call before each step)."""
+        """Evaluate the obstacles at time ``t`` from now on (call before each step).
+
+        With friction, the current state is the start of a step from the previous time to
+        ``t``: its normal forces, tangent planes and the obstacles' motion over the step are
+        lagged here.
+        """
         t = float(t)
         if not math.isfinite(t):
             raise ValueError(f"time must be finite, got {t!r}")
+        if self.friction is not None:
+            self.friction.lag(
+                self.positions(), self.boundary.weights, self.obstacles, self.barrier, self.time, t
+            )
         self.time = t
 
     def positions(self) -> np.ndarray:
@@ -215,8 +227,15 @@ class ContactTerm:
 
     # -- EnergyTerm ---------------------------------------------------------------------------
     def energy(self) -> float:
-        """Return this rank's share of the barrier energy at the current ``u`` (+∞: penetrated)."""
-        return self.potential.energy(self.positions(), self.boundary.weights, self.time)
+        """Return this rank's share of the barrier energy at the current ``u`` (+∞: penetrated).
+
+        With friction, the step's friction potential is included.
+        """
+        positions = self.positions()
+        value = self.potential.energy(positions, self.boundary.weights, self.time)
+        if self.friction is not None:
+            value += self.friction.energy(positions)
+        return value
 
     def add_residual(self, residual: np.ndarray) -> None:
         """Add the barrier's gradient into the local residual array (owned dofs only).
@@ -224,14 +243,25 @@ class ContactTerm:
         NaN goes into the dofs of a vertex on or inside an obstacle, which makes the solve fail
         (and a step controller cut the step) instead of continuing from an infeasible state.
         """
-        gradient = self.potential.gradient(self.positions(), self.boundary.weights, self.time)
+        positions = self.positions()
+        gradient = self.potential.gradient(positions, self.boundary.weights, self.time)
+        if self.friction is not None:
+            gradient += self.friction.gradient(positions)
         residual[self.boundary.dofs] += gradient
 
     def add_tangent(self, matrix: PETSc.Mat, constrained: np.ndarray) -> None:
-        """Add the SPD-projected barrier Hessian (a d × d block per active vertex)."""
+        """Add the SPD-projected barrier Hessian (a d × d block per active vertex).
+
+        With friction, its (positive semidefinite) Hessian too.
+        """
+        positions = self.positions()
         points, blocks = self.potential.hessians(
-            self.positions(), self.boundary.weights, self.time, project=True
+            positions, self.boundary.weights, self.time, project=True
         )
+        if self.friction is not None:
+            sliding, sliding_blocks = self.friction.hessians(positions)
+            points = np.concatenate([points, sliding])
+            blocks = np.concatenate([blocks, sliding_blocks])
         if len(points) == 0:
             return
         rows = self.boundary.dofs[points].astype(PETSc.IntType)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from dolfinx_invertible.meshes.cache import cached_mesh
+from dolfinx_invertible.meshes.gmsh_model import meshed_tetrahedra
 
 __all__ = ["generate", "mesh"]
 
@@ -46,18 +47,8 @@ def generate(resolution: int, size: float) -> tuple[np.ndarray, np.ndarray]:
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.option.setNumber("Mesh.Optimize", 1)
         gmsh.model.mesh.generate(3)
-        tags, coordinates, _ = gmsh.model.mesh.getNodes()
-        points = coordinates.reshape(-1, 3)
-        element_types, _, element_nodes = gmsh.model.mesh.getElements(3)
-        tetrahedra = element_nodes[list(element_types).index(4)].reshape(-1, 4)
-        index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
-        index[tags.astype(np.int64)] = np.arange(len(tags))
-        cells = index[tetrahedra.astype(np.int64)]
-        used = np.unique(cells)
-        renumber = np.zeros(len(points), dtype=np.int64)
-        renumber[used] = np.arange(len(used))
-        points = (points[used] - np.array(box[:3])) * (size / extent)
-        return points, renumber[cells]
+        points, cells = meshed_tetrahedra()
+        return (points - np.array(box[:3])) * (size / extent), cells
     finally:
         gmsh.finalize()
 

@@ -41,6 +41,8 @@ SCENES = {
     "compress-block": "compress_block:CompressBlock",
     "square-inv-free": "square_inv_free:SquareInversionFree",
     "bowl-drop": "bowl_drop:BowlDrop",
+    "cubes-in-bowl": "cubes_in_bowl:CubesInBowl",
+    "links": "links:Links",
     "ball-hit": "ball_hit:BallHit",
     "tight-tube": "tight_tube:TightTube",
     "gap-squeeze": "gap_squeeze:GapSqueeze",

@@ -44,7 +44,7 @@ CHECKPOINT_NAME = "checkpoint.npz"
 #: Version of the state layout; a checkpoint of another version is refused.
 _VERSION = 1
 _COUNTS = ("steps", "newton_total", "newton_max", "linear_total", "max_inverted", "min_J",
-           "nan_encountered", "svd_points", "time")  # fmt: skip
+           "nan_encountered", "svd_points", "time", "min_distance", "intersections")  # fmt: skip
 
 
 def _scene_state(scene) -> dict[str, Any]:
@@ -190,7 +190,8 @@ def restore_run(run: Run, output: Path) -> dict[str, Any]:
     state = read_checkpoint(files, run.dynamics.checkpoint_fields(), run.mesh.comm)
     run.dynamics.restore(state["dynamics"])
     for name in _COUNTS:
-        setattr(run, name, state["run"][name])
+        if name in state["run"]:
+            setattr(run, name, state["run"][name])
     run.started = perf_counter() - state["elapsed"]
     for name, value in state["scene_state"].items():
         setattr(run.scene, name, value)

@@ -25,6 +25,7 @@ class Collapse(Scene):
     description = "cube with every vertex moved to its centre (F = 0.05 I) springs back"
     figure = "Fig. 5 (left)"
     dynamic = True
+    takes_self_contact = True
     relaxation = True
     defaults = {"E": 1.0e3, "nu": 0.45, "density": 1.0, "dt": 0.01, "t_end": 0.4, "resolution": 4}
     takes_mesh_file = True

@@ -56,6 +56,7 @@ class ContactScene(Scene):
     """
 
     dynamic = True
+    takes_friction = True
 
     def __init__(self, parameters, comm):
         super().__init__(parameters, comm)
@@ -86,7 +87,13 @@ class ContactScene(Scene):
 
     def terms(self, u) -> list:
         """Return the contact barrier on ``u``."""
-        self.contact = ContactTerm(u, self.obstacles(), youngs_modulus=self.parameters.E)
+        self.contact = ContactTerm(
+            u,
+            self.obstacles(),
+            youngs_modulus=self.parameters.E,
+            friction=self.parameters.friction,
+            friction_velocity=self.parameters.friction_velocity,
+        )
         return [self.contact]
 
     def step_limits(self, u) -> list:

@@ -103,6 +103,19 @@ class Parameters:
         :func:`~dolfinx_invertible.solvers.options.linear_solver_options`).
     pc
         Preconditioner of the iterative path: ``"gamg"`` or ``"hypre"``.
+    self_contact
+        Keep the body's surface from passing through itself (IPC Toolkit's barrier and
+        continuous collision detection, :class:`~dolfinx_invertible.contact.BodyContactTerm`),
+        in the scenes that offer it.
+    count
+        Number of bodies, in the scenes of several (``cubes-in-bowl``, ``links``).
+    friction
+        Coulomb's coefficient μ of every contact of the scene (with obstacles and between
+        surfaces), lagged per time step; 0: frictionless.
+    friction_velocity
+        ε_v [m/s] of the smoothed friction: slip slower than this sticks (elastically). A
+        fraction of the scene's sliding speeds: too small a value makes the friction force
+        jump between steps, and Newton's iterations run out.
     """
 
     model: str = "neo-hookean"
@@ -127,6 +140,10 @@ class Parameters:
     elastic: str = "kernels"
     linear_solver: str = "auto"
     pc: str = "gamg"
+    self_contact: bool = False
+    count: int = 1
+    friction: float = 0.0
+    friction_velocity: float = 1e-3
 
     def validate(self) -> None:
         """Raise ``ValueError`` with the option name for any value outside its range."""
@@ -170,6 +187,13 @@ class Parameters:
                 f"--linear-solver must be one of {', '.join(LINEAR_SOLVERS)}, "
                 f"got {self.linear_solver!r}"
             )
+        if not (math.isfinite(self.friction) and self.friction >= 0.0):
+            raise ValueError(f"--friction must be a finite number >= 0, got {self.friction!r}")
+        _positive("--friction-velocity", self.friction_velocity)
+        if int(self.count) != self.count or self.count < 1:
+            raise ValueError(f"--count must be an integer >= 1, got {self.count!r}")
+        if not isinstance(self.self_contact, bool):
+            raise ValueError(f"--self-contact is a flag (True or False), got {self.self_contact!r}")
         if self.pc not in PRECONDITIONERS:
             raise ValueError(f"--pc must be one of {', '.join(PRECONDITIONERS)}, got {self.pc!r}")
         if self.elastic == "ufl" and (self.model != "neo-hookean" or self.extension != "none"):

@@ -35,6 +35,12 @@ class Run:
         The stepping object (one of them is None).
     controller
         The step controller (of the dynamics, or of the load steps).
+    body_contact
+        The :class:`~dolfinx_invertible.contact.BodyContactTerm` between the surfaces of the
+        bodies (``--self-contact``, several bodies), or None.
+    min_distance, intersections
+        With ``body_contact``: the smallest distance between surface primitives and the
+        crossing surface facet pairs summed over the stored steps.
     """
 
     scene: Scene
@@ -48,6 +54,7 @@ class Run:
     dynamics: ImplicitDynamics | None = None
     problem: HyperelasticProblem | None = None
     controller: StepController | None = None
+    body_contact: Any = None
     steps: int = 0
     newton_total: int = 0
     newton_max: int = 0
@@ -55,6 +62,8 @@ class Run:
     max_inverted: int = 0
     min_J: float = math.inf  # noqa: N815 (the notation: J = det F)
     nan_encountered: bool = False
+    min_distance: float = math.inf
+    intersections: int = 0
     svd_points: dict[str, list[float]] = dataclasses.field(default_factory=dict)
     started: float = dataclasses.field(default_factory=perf_counter)
 

@@ -273,6 +273,9 @@ def run_scene(
         u.interpolate(initial)
         u.x.scatter_forward()
     bcs, boundary_update = scene.boundary_conditions(space)
+    body_contact = scene.body_contact(u)
+    if body_contact is not None:
+        boundary_update = _starting_steps_of(body_contact, boundary_update)
     options = dict(scene.problem_options())
     options.setdefault("project", PROJECT_CHOICES[parameters.project])
     options.setdefault("petsc_options", petsc_options)
@@ -283,11 +286,22 @@ def run_scene(
     options.setdefault("pc", parameters.pc)
     options.update(problem_options or {})
     terms, limits = scene.terms(u), scene.step_limits(u)
+    if body_contact is not None:
+        # The barrier is undefined on crossing surfaces: refuse them before the first step.
+        body_contact.check_intersection_free()
+        terms, limits = [*terms, body_contact], [*limits, body_contact.step_limit()]
     if terms:
         options.setdefault("terms", terms)
     if limits:
         options.setdefault("step_limits", limits)
-    run = Run(scene=scene, parameters=parameters, material=material, mesh=mesh, u=u)
+    run = Run(
+        scene=scene,
+        parameters=parameters,
+        material=material,
+        mesh=mesh,
+        u=u,
+        body_contact=body_contact,
+    )
     if scene.dynamic:
         velocity = None
         initial_velocity = scene.initial_velocity()
@@ -436,6 +450,17 @@ def run_scene(
     return json_ready(summary_data)
 
 
+def _starting_steps_of(contact, update: Callable[[float], None] | None) -> Callable[[float], None]:
+    """Return the scene's boundary update followed by the contact's start of the step."""
+
+    def starting(t: float) -> None:
+        if update is not None:
+            update(t)
+        contact.set_time(t)
+
+    return starting
+
+
 def _watch(run: Run, observers: list[RunObserver]) -> Callable[[StepAttempt], None]:
     """Connect the observers to the run's solver; return the callback of step attempts."""
 
@@ -487,6 +512,12 @@ def _record(run: Run, writers: Sequence[Any], result: SolveResult | None) -> Non
         record["step_size"] = run.controller.accepted[-1]
     if run.dynamics is not None:
         record["kinetic_energy"] = run.dynamics.kinetic_energy
+    if run.body_contact is not None:
+        distance = run.body_contact.minimum_distance()
+        crossing = run.body_contact.intersections()
+        run.min_distance = min(run.min_distance, distance)
+        run.intersections += crossing
+        record.update(min_distance=distance, intersections=crossing)
     record["wall_time"] = perf_counter() - run.started
     for writer in writers:
         # A strictly increasing time for the initial state of a quasi-static run too.
@@ -500,6 +531,11 @@ def _summary(
     stepping = run.controller.statistics() if run.controller is not None else {}
     last = final if final is not None else run.diagnostics
     svd_share = {kind: float(np.mean(values)) for kind, values in run.svd_points.items() if values}
+    contact = (
+        {}
+        if run.body_contact is None
+        else {"min_distance": run.min_distance, "intersections": run.intersections}
+    )
     return {
         "scene": run.scene.name,
         "model": parameters.model,
@@ -521,4 +557,5 @@ def _summary(
         "wall_time_s": perf_counter() - run.started,
         "svd_share": svd_share,
         "stepping": stepping,
+        **contact,
     }

@@ -42,6 +42,10 @@ class Scatter(Scene):
     figure = "Fig. 5 (right), Fig. 7"
     dynamic = True
     relaxation = True
+    self_contact_refusal = (
+        "the scatter starts with its vertices scattered at random, its surface already "
+        "passing through itself, and IPC's barrier cannot start from intersecting surfaces"
+    )
     defaults = {"E": 1.0e3, "nu": 0.45, "density": 1.0, "dt": 0.01, "t_end": 0.6, "resolution": 4}
     choices = {"mesh": ("cube", "armadillo-like")}
     takes_mesh_file = True

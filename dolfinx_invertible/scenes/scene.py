@@ -48,6 +48,16 @@ class Scene:
         scenes whose loads do not depend on the body's shape. Such a scene's
         :meth:`create_mesh` fits the file's body into the box its own body occupies
         (:meth:`read_mesh_file`).
+    takes_self_contact
+        Whether ``--self-contact`` may keep the body's surface from passing through itself.
+    takes_friction
+        Whether the scene has contact with obstacles, which ``--friction`` makes frictional
+        (contact between surfaces, several bodies or ``--self-contact``, takes it too).
+    several_bodies
+        Whether the scene is made of ``count`` bodies (``--count N``) in contact with each
+        other: :meth:`body_contact` is always on.
+    self_contact_refusal
+        Why a scene refuses ``--self-contact`` where a user may expect it (the error says so).
 
     Parameters
     ----------
@@ -65,6 +75,10 @@ class Scene:
     defaults: ClassVar[dict[str, Any]] = {}
     choices: ClassVar[dict[str, Sequence[Any]]] = {}
     takes_mesh_file: ClassVar[bool] = False
+    takes_self_contact: ClassVar[bool] = False
+    self_contact_refusal: ClassVar[str] = ""
+    several_bodies: ClassVar[bool] = False
+    takes_friction: ClassVar[bool] = False
 
     def __init__(self, parameters: Parameters, comm):
         self.parameters = parameters
@@ -75,6 +89,18 @@ class Scene:
     @classmethod
     def check_parameters(cls, parameters: Parameters) -> None:
         """Raise ``ValueError`` if a scene-specific parameter does not apply to this scene."""
+        if parameters.count != Parameters.count and not cls.several_bodies:
+            raise ValueError(f"--count: the {cls.name} scene has one body")
+        if parameters.friction > 0.0 and not (
+            cls.takes_friction or cls.several_bodies or parameters.self_contact
+        ):
+            raise ValueError(
+                f"--friction: the {cls.name} scene has no contact"
+                + (" (add --self-contact)" if cls.takes_self_contact else "")
+            )
+        if parameters.self_contact and not cls.takes_self_contact:
+            reason = cls.self_contact_refusal or f"the {cls.name} scene does not offer it"
+            raise ValueError(f"--self-contact: {reason}")
         names = tuple(cls.choices.get("mesh", (Parameters.mesh,)))
         if parameters.mesh in names:
             return
@@ -139,6 +165,26 @@ class Scene:
     def step_limits(self, u) -> list:
         """Return step caps (e.g. continuous collision detection), built on ``u``."""
         return []
+
+    def body_contact(self, u):
+        """Return the contact between the bodies' surfaces, or None.
+
+        With ``--self-contact``: a :class:`~dolfinx_invertible.contact.BodyContactTerm` on
+        ``u`` whose barrier stiffness follows the run's Young's modulus. A scene of several
+        bodies returns one always. The runner adds it to the problem with its step cap, checks
+        that the surfaces do not intersect at the start, and records ``min_distance`` and
+        ``intersections`` at every stored step.
+        """
+        if not (self.parameters.self_contact or self.several_bodies):
+            return None
+        from dolfinx_invertible.contact import BodyContactTerm
+
+        return BodyContactTerm(
+            u,
+            youngs_modulus=self.parameters.E,
+            friction=self.parameters.friction,
+            friction_velocity=self.parameters.friction_velocity,
+        )
 
     def drawn_obstacles(self) -> list:
         """Return what pictures draw beside the body: objects with ``gap(x, t)``.

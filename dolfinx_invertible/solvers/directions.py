@@ -30,6 +30,7 @@ from collections.abc import Callable
 from petsc4py import PETSc
 
 from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
+from dolfinx_invertible.solvers.patterns import copy_into, structure
 from dolfinx_invertible.solvers.results import ksp_reason_name
 from dolfinx_invertible.solvers.truncated_cg import TruncatedCG, truncated_cg
 
@@ -100,13 +101,13 @@ class BlendedTangent:
         """Solve with the best definite blend at ``x``; return the kind of direction computed."""
         matrix = directions.matrix
         # The exact tangent SNES just factorised, before the projected one overwrites it.
-        self._exact = matrix.copy(self._exact, structure=_SAME_PATTERN)
+        self._exact = copy_into(matrix, self._exact)
         directions.assemble_projected(x)
-        self._exact.axpy(-1.0, matrix, structure=_SAME_PATTERN)  # K − K₊
-        self._projected = matrix.copy(self._projected, structure=_SAME_PATTERN)
+        self._exact.axpy(-1.0, matrix, structure=structure(matrix, self._exact))  # K − K₊
+        self._projected = copy_into(matrix, self._projected)
         for rung in range(max(self.rung - 1, 0), len(BLEND_WEIGHTS)):
             self._projected.copy(matrix, structure=_SAME_PATTERN)
-            matrix.axpy(BLEND_WEIGHTS[rung], self._exact, structure=_SAME_PATTERN)
+            matrix.axpy(BLEND_WEIGHTS[rung], self._exact, structure=structure(self._exact, matrix))
             directions.solve(ksp, y)
             if ksp.getConvergedReason() > 0 and not is_indefinite(ksp):
                 self.rung = rung
@@ -241,7 +242,7 @@ class NewtonDirections:
                 self.tangent_switch(False)
         if P is not None and P.handle != A.handle:
             if projected:
-                A.copy(P, structure=_SAME_PATTERN)
+                copy_into(A, P)
             else:
                 self.tangent_switch(True)
                 try:

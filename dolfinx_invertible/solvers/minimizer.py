@@ -132,6 +132,7 @@ class EnergyMinimizer:
         self.problem = problem
         self.u = problem.u
         self.step_limits = tuple(step_limits)
+        self._capped_by: str | None = None  # the step limit that capped the last step
         self.options_prefix = options_prefix
 
         self.options = MinimizerOptions(problem, petsc_options, options_prefix, linear_solver, pc)
@@ -244,10 +245,12 @@ class EnergyMinimizer:
     def _largest_step(self, y: PETSc.Vec) -> float:
         largest = 1.0
         iteration = int(self.snes.getIterationNumber())
+        self._capped_by = None
         for limit in self.step_limits:
             cap = limit.largest_step(y, sign=-1.0)
             self._monitors.capped(limit, cap, iteration)
-            largest = min(largest, cap)
+            if cap < largest:
+                largest, self._capped_by = cap, type(limit).__name__
         return largest
 
     def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
@@ -280,6 +283,18 @@ class EnergyMinimizer:
                 self._test.fail(_REASONS.DIVERGED_LINE_SEARCH, "line search", why)
             return
         largest = self._largest_step(y)
+        floor = 0.5**search.max_backtracks
+        if largest < floor:
+            # No step the line search could take: a cap, not a stall (the step is cut).
+            y.set(0.0)
+            monitors.step_length = 0.0
+            self._test.fail(
+                _REASONS.DIVERGED_LINE_SEARCH,
+                "line search",
+                f"{self._capped_by} allows {largest:.1e} of the Newton step, below the line "
+                f"search's floor of {floor:.1e}",
+            )
+            return
         if largest < 1.0:
             y.scale(largest)
         search.full_step = largest == 1.0

@@ -293,11 +293,17 @@ class EnergyProblem:
         reused_forms = {id(matrix.form) for matrix in reused}
         assembled = [form for form in self.jacobian_forms if id(form) not in reused_forms]
         last = len(assembled) - 1
+        form_mallocs = 0.0
         for matrix in matrices:
             matrix.zeroEntries()
             for index, form in enumerate(assembled):
                 diagonal = 1.0 if index == last else 0.0
                 _compat.assemble_matrix_into(matrix, form, self.bcs, diagonal)
+            # Counted before the terms, whose couplings (contact pairs) may grow the pattern;
+            # PETSc counts a matrix's allocations when it is assembled.
+            if matrix is A and not self._pattern_checked and len(self.jacobian_forms) > 1:
+                A.assemble()
+                form_mallocs = A.getInfo()["mallocs"]
             if reused:
                 matrix.assemble()
                 for reused_matrix in reused:
@@ -308,7 +314,7 @@ class EnergyProblem:
             matrix.assemble()
         if not self._pattern_checked and len(self.jacobian_forms) > 1:
             self._pattern_checked = True
-            mallocs = A.getInfo()["mallocs"]
+            mallocs = form_mallocs
             if mallocs > 0:
                 warnings.warn(
                     f"the jacobian forms needed {int(mallocs)} allocations beyond the sparsity "

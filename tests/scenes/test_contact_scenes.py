@@ -100,3 +100,19 @@ def test_contact_scenes_write_their_record(directory):
         history = np.load(directory / "gap" / "contact.npy")
         assert history.shape == (summary["steps"] + 1, 7)
         assert np.min(history[:, 1]) == pytest.approx(summary["min_gap"])
+
+
+def test_gap_squeeze_rollers_pull_the_body_through_by_friction():
+    """The rollers turn down through the nip: with friction the body leaves faster and lower."""
+    options = dict(resolution=4, t_end=0.1)
+    frictionless = run("gap-squeeze", comm=MPI.COMM_SELF, **options)
+    gripped = run("gap-squeeze", comm=MPI.COMM_SELF, friction=0.5, **options)
+    for summary in (frictionless, gripped):
+        check_contact(summary)
+    assert gripped["final_centre"][2] < frictionless["final_centre"][2] - 0.02
+    assert gripped["final_kinetic_energy"] > frictionless["final_kinetic_energy"]
+
+
+def test_friction_needs_contact():
+    with pytest.raises(ValueError, match="--friction: the collapse scene has no contact"):
+        run("collapse", friction=0.3)

@@ -323,3 +323,24 @@ def test_a_form_that_does_not_read_u_is_assembled_once_per_change_of_its_data(mo
         x.array[:] += 1e-3
     assert sum(form is elastic for form in assembled) == 5
     assert sum(form is inertia for form in assembled) == 2  # once per weight
+
+
+class _Wall:
+    """A step limit that allows no motion at all (a contact's CCD with nowhere to go)."""
+
+    def largest_step(self, direction, sign=1.0):
+        return 1e-30
+
+
+@pytest.mark.mpi
+def test_a_step_cap_below_the_line_search_floor_fails_the_step_by_name():
+    """A cap no line search can take is a reported failure that cuts the step, not a stall."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
+    dynamics = ImplicitDynamics(
+        u, Material(NeoHookean(mu=MU, lam=LAM), C2()), density=1.0, dt=0.1, max_cuts=1,
+        gravity=(0.0, 0.0, -9.81), step_limits=[_Wall()],
+    )  # fmt: skip
+    with pytest.raises(SolverError, match=r"failed .*_Wall allows 1\.0e-30 of the Newton step"):
+        dynamics.step()
+    assert dynamics.controller.statistics()["cuts"] >= 1

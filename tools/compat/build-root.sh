@@ -28,8 +28,11 @@ apt_packages=(
 # (through PETSc) into the same process, and h5py then fails with "Not a datatype".
 pip_packages=(
   dolfinx-solver-real numba pytest pytest-xdist meshio "h5py<3.16" scipy matplotlib tqdm gmsh
-  pillow
+  pillow ipctk==1.6.1
 )
+# What Debian does not package, for the trixie lane's system Python: IPC Toolkit (its wheels
+# need only NumPy and SciPy, which Debian's packages give).
+system_pip_packages=(ipctk==1.6.1)
 venv=/opt/dolfinx-wheel
 
 stage_done() { [ -e "$stages/$1" ]; }
@@ -37,6 +40,7 @@ stage_done() { [ -e "$stages/$1" ]; }
 list_key() { printf '%s\n' "$@" | sha256sum | cut -c1-12; }
 apt_stage=apt-$(list_key "${apt_packages[@]}")
 venv_stage=venv-$(list_key "${pip_packages[@]}")
+system_pip_stage=system-pip-$(list_key "${system_pip_packages[@]}")
 mark_done() { mkdir -p "$stages" && touch "$stages/$1"; }
 
 ensure_debootstrap() {
@@ -104,4 +108,12 @@ if ! stage_done "$venv_stage"; then
       "$0"/bin/pip install -q --retries 5 --no-cache-dir "$@"
   ' "$venv" "$venv" "${pip_packages[@]}"
   mark_done "$venv_stage"
+fi
+
+if ! stage_done "$system_pip_stage"; then
+  echo "installing into trixie's Python from PyPI: ${system_pip_packages[*]}"
+  compat_chroot "$root" env PIP_CERT=/usr/local/share/compat-host-ca/ca-certificates.crt \
+    python3 -m pip install -q --retries 5 --no-cache-dir --no-deps --break-system-packages \
+    "${system_pip_packages[@]}"
+  mark_done "$system_pip_stage"
 fi

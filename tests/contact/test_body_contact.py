@@ -1,0 +1,289 @@
+"""The contact term between surfaces (IPC Toolkit): derivatives by finite differences, the
+projected tangent, the κ rule against an independent measurement, the step cap, the refusal of
+crossing bodies, and the same values on any number of ranks.
+"""
+
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
+import numpy as np
+import pytest
+import ufl
+from petsc4py import PETSc
+
+from dolfinx_invertible import _compat
+from dolfinx_invertible.contact import BodyContactTerm, GatheredSurface, SurfaceIntersectionError
+from dolfinx_invertible.meshes.blocks import cube_cells, cubes_mesh
+
+SIDE = 1.0
+GAP = 0.03
+
+
+def two_cubes(comm, offset=(0.2, 0.1, SIDE + GAP), resolution=2):
+    """A cube at the origin and one above it, ``offset`` between their centres."""
+    return cubes_mesh(comm, np.array([[0.0, 0.0, 0.0], offset]), SIDE, resolution)
+
+
+def two_squares(comm, gap=GAP):
+    """Two unit squares of 2 × 2 × 2 triangles, one above the other."""
+    line = np.linspace(0.0, 1.0, 3)
+    grid = np.stack(np.meshgrid(line, line, indexing="ij"), axis=-1).reshape(-1, 2)
+    corner = (np.arange(2)[:, None] * 3 + np.arange(2)[None, :]).ravel()
+    triangles = np.vstack([np.column_stack([corner, corner + 3, corner + 4]),
+                           np.column_stack([corner, corner + 4, corner + 1])])  # fmt: skip
+    points = np.vstack([grid, grid + [0.15, 1.0 + gap]])
+    cells = np.vstack([triangles, triangles + len(grid)])
+    return _compat.create_mesh_from_cells(comm, points, cells, "triangle")
+
+
+def field(space, seed, scale):
+    """A smooth pseudo-random vector field, the same on any partition."""
+    function = dolfinx.fem.Function(space)
+    d = space.mesh.geometry.dim
+
+    def values(x):
+        return np.stack([scale * np.sin(7.1 * x[0] + 3.3 * x[1] + 5.7 * x[2] + seed + 1.9 * k)
+                         for k in range(d)])  # fmt: skip
+
+    function.interpolate(values)
+    function.x.scatter_forward()
+    return function
+
+
+def total_energy(term):
+    return term.comm.allreduce(term.energy(), op=MPI.SUM)
+
+
+def residual(term):
+    array = np.zeros_like(term.u.x.array)
+    term.add_residual(array)
+    owned = term.u.function_space.dofmap.index_map.size_local * term.surface.dimension
+    return array[:owned]
+
+
+def tangent(term):
+    space = term.u.function_space
+    mass = dolfinx.fem.form(ufl.inner(ufl.TrialFunction(space), ufl.TestFunction(space)) * ufl.dx)
+    matrix = _compat.create_matrix(mass)
+    matrix.zeroEntries()
+    term.add_tangent(matrix, np.zeros(0, dtype=np.int32))
+    matrix.assemble()
+    return matrix
+
+
+def set_displacement(term, values):
+    term.u.x.array[:] = values
+    term.u.x.scatter_forward()
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_gradient_and_hessian_match_finite_differences(dimension):
+    comm = MPI.COMM_WORLD
+    mesh = two_cubes(comm) if dimension == 3 else two_squares(comm)
+    space = _compat.vector_function_space(mesh, 1)
+    u = field(space, 0.0, 0.004)
+    term = BodyContactTerm(u, youngs_modulus=1.0, distance=0.1, project_hessian=False)
+    assert comm.allreduce(term.active_pairs()) > 0
+    base = u.x.array.copy()
+    direction = field(space, 1.0, 1.0).x.array
+    owned = len(residual(term))
+    gradient = residual(term)
+    matrix = tangent(term)
+    vector = matrix.createVecRight()
+    vector.array[:] = direction[:owned]
+    product = matrix.createVecLeft()
+    matrix.mult(vector, product)
+
+    step = 1e-6
+    set_displacement(term, base + step * direction)
+    energy_plus, gradient_plus = total_energy(term), residual(term)
+    set_displacement(term, base - step * direction)
+    energy_minus, gradient_minus = total_energy(term), residual(term)
+    set_displacement(term, base)
+
+    slope = comm.allreduce(float(gradient @ direction[:owned]), op=MPI.SUM)
+    assert (energy_plus - energy_minus) / (2 * step) == pytest.approx(slope, rel=1e-6)
+    difference = (gradient_plus - gradient_minus) / (2 * step)
+    error = comm.allreduce(float(np.sum((difference - product.array) ** 2)), op=MPI.SUM)
+    size = comm.allreduce(float(np.sum(difference**2)), op=MPI.SUM)
+    assert size > 0.0
+    assert np.sqrt(error / size) < 1e-5
+
+
+def test_projected_hessian_is_positive_semidefinite():
+    mesh = two_cubes(MPI.COMM_SELF)
+    u = field(_compat.vector_function_space(mesh, 1), 0.0, 0.006)
+    exact = BodyContactTerm(u, youngs_modulus=1.0, distance=0.1, project_hessian=False)
+    projected = BodyContactTerm(u, youngs_modulus=1.0, distance=0.1)
+    eigenvalues = {}
+    for name, term in (("exact", exact), ("projected", projected)):
+        matrix = tangent(term)
+        dense = matrix.convert("dense").getDenseArray()
+        eigenvalues[name] = np.linalg.eigvalsh(0.5 * (dense + dense.T))
+    scale = eigenvalues["projected"].max()
+    # This configuration has negative curvature, which the projection removes.
+    assert eigenvalues["exact"].min() < -1e-6 * scale
+    assert eigenvalues["projected"].min() > -1e-10 * scale
+
+
+def test_stiffness_rule_gives_a_layer_of_material():
+    """κ's rule: at a gap of d̂/2, pushing two faces together is as stiff as E/h per area.
+
+    Measured on meshes (not the calibration patch of the rule): a cube of side 1 above the
+    middle of a cube of side 2, both at the same spacing; the second derivative of the energy as
+    the small cube moves rigidly towards the large one, per unit area of its bottom face. The
+    vertices along the small face's rim also carry the area of the side faces (ipctk's vertex
+    areas), a share that falls like h: the ratio to E/h, extrapolated to h → 0 from two
+    meshes (Richardson, first order), is 1.
+    """
+    ratios = []
+    for resolution in (4, 8):
+        apart = 0.1 * SIDE
+        cubes = [
+            ([0, 0, 0], 2 * SIDE, 2 * resolution),
+            ([0, 0, 1.5 * SIDE + apart], SIDE, resolution),
+        ]
+        mesh = _compat.create_mesh_from_cells(MPI.COMM_SELF, *_merged(cubes), "tetrahedron")
+        space = _compat.vector_function_space(mesh, 1)
+        youngs_modulus = 1e3
+        term = BodyContactTerm(dolfinx.fem.Function(space), youngs_modulus=youngs_modulus)
+        upper = space.tabulate_dof_coordinates()[:, 2] > SIDE + 0.5 * apart
+
+        def energy(gap, term=term, upper=upper, apart=apart):
+            values = np.zeros((len(upper), 3))
+            values[upper, 2] = gap - apart
+            set_displacement(term, values.ravel())
+            return total_energy(term)
+
+        gap, step = 0.5 * term.distance, 1e-3 * term.distance
+        curvature = (energy(gap + step) - 2 * energy(gap) + energy(gap - step)) / step**2
+        ratios.append(curvature / SIDE**2 / (youngs_modulus / term.surface.spacing))
+    assert ratios[0] > ratios[1] > 1.0
+    assert 2 * ratios[1] - ratios[0] == pytest.approx(1.0, abs=0.1)
+
+
+def _merged(cubes):
+    """Points and cells of several axis-aligned cubes given as (centre, side, resolution)."""
+    points, cells, offset = [], [], 0
+    for centre, side, resolution in cubes:
+        unit_points, unit_cells = cube_cells(resolution)
+        points.append(np.asarray(centre) + side * unit_points)
+        cells.append(unit_cells + offset)
+        offset += len(unit_points)
+    return np.concatenate(points), np.concatenate(cells)
+
+
+@pytest.mark.mpi
+def test_step_cap_stops_before_the_surfaces_meet():
+    comm = MPI.COMM_WORLD
+    mesh = two_cubes(comm, offset=(0.2, 0.1, SIDE + 0.2))
+    space = _compat.vector_function_space(mesh, 1)
+    u = dolfinx.fem.Function(space)
+    term = BodyContactTerm(u, youngs_modulus=1.0)
+    motion = dolfinx.fem.Function(space)
+    motion.interpolate(lambda x: np.stack([0 * x[0], 0 * x[0], -0.4 * (x[2] > 0.5 * SIDE)]))
+    vector = _compat.petsc_vector(motion)
+    cap = term.step_limit(fraction=0.9).largest_step(vector)
+    # The first contact is at half the step: the cap is at most 0.9 of it.
+    assert 0.3 < cap <= 0.45 + 1e-9
+    set_displacement(term, cap * motion.x.array)
+    assert term.intersections() == 0 and term.minimum_distance() > 0.0
+    # Away from each other, nothing is in the way.
+    assert term.step_limit().largest_step(vector, sign=-1.0) == 1.0
+
+
+@pytest.mark.mpi
+def test_surface_is_gathered_whole_on_every_rank():
+    comm = MPI.COMM_WORLD
+    resolution = 3
+    mesh = two_cubes(comm, resolution=resolution)
+    surface = GatheredSurface(_compat.vector_function_space(mesh, 2))
+    per_cube = 6 * resolution**2 + 2
+    assert len(surface) == 2 * per_cube
+    assert len(surface.facets) == 2 * 6 * 2 * resolution**2
+    assert surface.body_count == 2
+    assert np.bincount(surface.bodies).tolist() == [per_cube, per_cube]
+    assert surface.area == pytest.approx(12 * SIDE**2)
+    assert comm.allreduce(len(surface.owned), op=MPI.SUM) == len(surface)
+    # Every rank holds the same surface.
+    assert comm.allgather(surface.reference.tobytes()) == [surface.reference.tobytes()] * comm.size
+
+
+@pytest.mark.mpi
+def test_distributed_equals_serial():
+    values = {}
+    for comm in (MPI.COMM_SELF, MPI.COMM_WORLD):
+        mesh = two_cubes(comm)
+        space = _compat.vector_function_space(mesh, 1)
+        u = field(space, 0.0, 0.004)
+        term = BodyContactTerm(u, youngs_modulus=1.0, distance=0.1)
+        motion = field(space, 2.0, 0.05)
+        gradient = residual(term)
+        values[comm.size] = (
+            total_energy(term),
+            np.sqrt(comm.allreduce(float(gradient @ gradient), op=MPI.SUM)),
+            term.minimum_distance(),
+            term.step_limit().largest_step(_compat.petsc_vector(motion)),
+        )
+    serial, distributed = values[1], values[MPI.COMM_WORLD.size]
+    np.testing.assert_allclose(distributed, serial, rtol=1e-12)
+
+
+def test_crossing_bodies_are_refused_naming_them():
+    mesh = two_cubes(MPI.COMM_SELF, offset=(0.3, 0.2, 0.8))
+    term = BodyContactTerm(dolfinx.fem.Function(_compat.vector_function_space(mesh, 1)),
+                           youngs_modulus=1.0)  # fmt: skip
+    assert term.intersections() > 0
+    with pytest.raises(SurfaceIntersectionError, match=r"body [01]'s .* crosses body [01]'s"):
+        term.check_intersection_free()
+
+
+def test_cube_cells_fill_the_cube():
+    points, cells = cube_cells(3)
+    corners = points[cells]
+    volumes = np.linalg.det(corners[:, 1:] - corners[:, :1]) / 6
+    assert np.sum(np.abs(volumes)) == pytest.approx(1.0)
+    assert np.all(np.abs(volumes) > 0)
+
+
+def test_needs_a_scale_for_the_stiffness():
+    mesh = two_cubes(MPI.COMM_SELF)
+    with pytest.raises(ValueError, match="stiffness needs a scale"):
+        BodyContactTerm(dolfinx.fem.Function(_compat.vector_function_space(mesh, 1)))
+    assert PETSc.IntType is not None
+
+
+@pytest.mark.mpi
+def test_friction_between_surfaces_resists_the_slip_with_its_gradient():
+    """ipctk's lagged friction: the energy's slope matches the gradient; sliding costs energy."""
+    comm = MPI.COMM_WORLD
+    mesh = two_cubes(comm)
+    space = _compat.vector_function_space(mesh, 1)
+    u = field(space, 0.0, 0.004)
+    term = BodyContactTerm(u, youngs_modulus=1.0, distance=0.1, friction=0.5,
+                           friction_velocity=0.01)  # fmt: skip
+    frictionless = BodyContactTerm(u, youngs_modulus=1.0, distance=0.1)
+    term.set_time(0.0)
+    term.set_time(0.01)  # lagged at the current state, for a step of 0.01
+    base = u.x.array.copy()
+    upper = space.tabulate_dof_coordinates()[:, 2] > 0.5 * SIDE
+    slip = np.zeros((len(upper), 3))
+    slip[upper, 0] = 0.003
+    set_displacement(term, base + slip.ravel())
+    owned = len(residual(term))
+    gradient = residual(term) - residual(frictionless)
+    # The friction's force on the upper cube points against its slip.
+    along = comm.allreduce(float(gradient @ slip.ravel()[:owned]), op=MPI.SUM)
+    assert along > 0.0
+    direction = field(space, 1.0, 1.0).x.array
+    step = 1e-7
+    current = u.x.array.copy()
+    set_displacement(term, current + step * direction)
+    plus = total_energy(term)
+    set_displacement(term, current - step * direction)
+    minus = total_energy(term)
+    set_displacement(term, current)
+    slope = comm.allreduce(float(residual(term) @ direction[:owned]), op=MPI.SUM)
+    assert (plus - minus) / (2 * step) == pytest.approx(slope, rel=1e-5)
