@@ -66,7 +66,7 @@ GALLERY = [
      "a body squeezed between two cylinders"),
     ("gap-squeeze-friction", "gap-squeeze", ["--friction", "0.5"], 1, "most-inverted",
      "the turning rollers grip the body (μ = 0.5) and pull it through"),
-    ("cubes-in-bowl", "cubes-in-bowl", ["--resolution", "3"], 2, "last",
+    ("cubes-in-bowl", "cubes-in-bowl", [], 2, "last",
      "8 soft cubes piled in the bowl, cube on cube through IPC Toolkit"),
     ("links", "links", [], 1, 0.15, "a chain of rings caught on each other, stretched"),
 ]  # fmt: skip

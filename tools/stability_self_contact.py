@@ -1,9 +1,9 @@
 """Rerun the stability study's collapse cells that ended tangled, now with self-contact.
 
 Reads docs/stability/stability.csv, takes the collapse cells whose cause was a self-overlapping
-equilibrium (the body passed through itself), runs each again with ``self_contact=True`` (IPC Toolkit keeps the
-surface from passing through itself; everything else as in the study) and writes a table with
-both outcomes to docs/stability/self_contact.md. Run from the repository root::
+equilibrium (the body passed through itself), runs each again with ``self_contact=True`` (IPC
+Toolkit keeps the surface from passing through itself; everything else as in the study) and
+writes a table with both outcomes to docs/stability/self_contact.md. Run from the repository root::
 
     .venv/bin/python tools/stability_self_contact.py
 """

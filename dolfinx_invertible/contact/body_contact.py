@@ -376,6 +376,9 @@ class BodyContactTerm:
         added is added again (as 0 where it does not act now), so that all matrices it is
         assembled into have nested patterns (:mod:`dolfinx_invertible.solvers.patterns`).
         """
+        # On every rank, even one that adds nothing: PETSc's assembly takes a collective path
+        # only on the ranks whose matrix may grow, and all must take the same one.
+        matrix.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         positions = self.positions()
         collisions = self._collisions_for(positions)
         fixed = np.isin(self.surface.owned_dofs, constrained).astype(np.float64)
@@ -395,7 +398,6 @@ class BodyContactTerm:
             return
         columns = np.where(fixed, -1, self._global_dofs)[rows.indices].astype(PETSc.IntType)
         row_numbers = np.where(fixed, -1, self._global_dofs)[self._owned_rows]
-        matrix.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         matrix.setValuesIJV(
             rows.indptr.astype(PETSc.IntType),
             columns,
