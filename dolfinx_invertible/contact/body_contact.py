@@ -42,6 +42,11 @@ from dolfinx_invertible.contact.surface import GatheredSurface
 
 __all__ = ["BodyContactTerm", "SurfaceCollisionFreeStep", "SurfaceIntersectionError"]
 
+# One thread per MPI rank, as for BLAS (the Makefile's OMP_NUM_THREADS=1): the ranks already
+# fill the cores, and ipctk's threaded reductions would sum in a varying order, so that the same
+# state could give energies that differ in the last bits from one evaluation to the next.
+ipctk.set_num_threads(1)
+
 
 class SurfaceIntersectionError(ValueError):
     """The surfaces of the bodies intersect (or touch) where they may not, e.g. at t = 0."""
