@@ -455,11 +455,12 @@ def parser() -> argparse.ArgumentParser:
     scenes = run_parser.add_subparsers(dest="scene", required=True, metavar="SCENE")
     for name in SCENES:
         scene = get_scene(name)
+        # argparse %-formats help texts; a description's "20 % of" is text.
+        described = f"{scene.description} [{scene.figure}]".replace("%", "%%")
         scene_parser = scenes.add_parser(
             name,
-            help=f"{scene.description} [{scene.figure}]",
-            description=f"{scene.description} [{scene.figure}]. Options not given take this "
-            "scene's defaults, shown below.",
+            help=described,
+            description=f"{described}. Options not given take this scene's defaults, shown below.",
         )
         _scene_options(scene_parser, scene)
         scene_parser.set_defaults(handler=_run)
@@ -471,7 +472,8 @@ def parser() -> argparse.ArgumentParser:
         module = importlib.import_module(f"dolfinx_invertible.reports.{module_name}")
         if not hasattr(module, "add_arguments"):
             continue
-        subparser = reports.add_parser(name, help=description, description=description)
+        described = description.replace("%", "%%")
+        subparser = reports.add_parser(name, help=described, description=described)
         module.add_arguments(subparser)
         subparser.set_defaults(handler=_report, report_module=module_name)
 

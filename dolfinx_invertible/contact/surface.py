@@ -132,7 +132,7 @@ class GatheredSurface:
             adjacency, directed=False
         )
         self.area = float(np.sum(self.facet_measures(self.reference)))
-        self.spacing = (self.area / len(self.global_blocks)) ** (1.0 / (dimension - 1))
+        self.spacing = self.spacing_at(self.reference)
 
     def __len__(self) -> int:
         return len(self.global_blocks)
@@ -144,6 +144,11 @@ class GatheredSurface:
         return scipy.sparse.csr_matrix(
             (np.ones(len(rows), dtype=np.int8), (rows, columns)), shape=(size, size)
         )
+
+    def spacing_at(self, positions: np.ndarray) -> float:
+        """Return the vertex spacing (area / N)^(1/(d−1)) of the surface at ``positions``."""
+        area = float(np.sum(self.facet_measures(positions)))
+        return (area / len(self.global_blocks)) ** (1.0 / (self.dimension - 1))
 
     def facet_measures(self, positions: np.ndarray) -> np.ndarray:
         """Areas (3D) or lengths (2D) of the surface facets at ``positions``, (M,)."""

@@ -67,6 +67,7 @@ def _run_state(run: Run, steps_written: int) -> dict[str, Any]:
         "run": {name: getattr(run, name) for name in _COUNTS},
         "elapsed": perf_counter() - run.started,
         "scene_state": _scene_state(run.scene),
+        "body_contact": (None if run.body_contact is None else run.body_contact.checkpoint_state()),
     }
 
 
@@ -195,4 +196,6 @@ def restore_run(run: Run, output: Path) -> dict[str, Any]:
     run.started = perf_counter() - state["elapsed"]
     for name, value in state["scene_state"].items():
         setattr(run.scene, name, value)
+    if run.body_contact is not None and state.get("body_contact") is not None:
+        run.body_contact.restore(state["body_contact"])
     return state

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+import weakref
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -29,6 +30,25 @@ from dolfinx_invertible.solvers.step_limit import StepLimit
 __all__ = ["EnergyMinimizer"]
 
 _REASONS = PETSc.SNES.ConvergedReason
+
+
+def _weakly(method: Callable[..., Any]) -> Callable[..., Any]:
+    """Wrap ``method`` as a SNES callback that does not keep its object alive.
+
+    The SNES belongs to the minimizer; a callback bound to the minimizer (or to what it owns)
+    closes a cycle through the SNES, and petsc4py objects are opaque to Python's cycle
+    collector in some releases (3.24): the minimizer, its mesh and their MPI communicators would
+    then live until exit, and MPICH aborts after 2 048 communicators.
+    """
+    reference = weakref.WeakMethod(method)
+
+    def call(*arguments: Any) -> Any:
+        bound = reference()
+        if bound is None:
+            raise RuntimeError("the SNES outlived the EnergyMinimizer that configured it")
+        return bound(*arguments)
+
+    return call
 
 
 class EnergyMinimizer:
@@ -169,12 +189,12 @@ class EnergyMinimizer:
 
         self.snes = PETSc.SNES().create(problem.comm)
         self.snes.setOptionsPrefix(options_prefix)
-        self.snes.setFunction(problem.F, self._residual)
-        self.snes.setJacobian(directions.assemble, *directions.snes_matrices)
-        self.snes.setLineSearchPreCheck(self._precheck)
-        self.snes.setConvergenceTest(self._converged)
+        self.snes.setFunction(_weakly(problem.F), self._residual)
+        self.snes.setJacobian(_weakly(directions.assemble), *directions.snes_matrices)
+        self.snes.setLineSearchPreCheck(_weakly(self._precheck))
+        self.snes.setConvergenceTest(_weakly(self._converged))
         self.snes.setConvergenceHistory(reset=True)
-        self.snes.setMonitor(self._monitor)
+        self.snes.setMonitor(_weakly(self._monitor))
         chosen = self.options.configure(self.snes)
         directions.choose_krylov_method(self.snes.getKSP())
         self.line_search = "energy" if chosen == "basic" and problem.has_energy else chosen

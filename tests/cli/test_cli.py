@@ -46,6 +46,24 @@ def test_scene_help_shows_units_and_this_scene_defaults():
     assert "largest time step [s] (default: 0.01)" in dynamic
 
 
+def test_every_command_prints_its_help():
+    """Every parser's help formats: argparse reads "%" in a help text as a format."""
+    import argparse
+
+    from dolfinx_invertible.cli import parser
+
+    pending, seen = [parser()], 0
+    while pending:
+        current = pending.pop()
+        assert current.format_help()
+        seen += 1
+        for action in current._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                pending.extend(action.choices.values())
+    assert seen > len(SCENES)
+    assert cli("run", "--help").returncode == 0
+
+
 @pytest.mark.parametrize(
     "arguments, message",
     [

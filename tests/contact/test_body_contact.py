@@ -159,7 +159,7 @@ def test_stiffness_rule_gives_a_layer_of_material():
 
         gap, step = 0.5 * term.distance, 1e-3 * term.distance
         curvature = (energy(gap + step) - 2 * energy(gap) + energy(gap - step)) / step**2
-        ratios.append(curvature / SIDE**2 / (youngs_modulus / term.surface.spacing))
+        ratios.append(curvature / SIDE**2 / (youngs_modulus / term.spacing))
     assert ratios[0] > ratios[1] > 1.0
     assert 2 * ratios[1] - ratios[0] == pytest.approx(1.0, abs=0.1)
 
@@ -240,6 +240,20 @@ def test_crossing_bodies_are_refused_naming_them():
         term.check_intersection_free()
 
 
+@pytest.mark.mpi
+def test_a_body_that_starts_compressed_gets_a_distance_to_match():
+    """d̂ follows the surface spacing as the bodies start: both cubes at half their size (a
+    uniform compression about the origin, no surface crossing) halve d̂ and h."""
+    mesh = two_cubes(MPI.COMM_WORLD, resolution=1)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
+    undeformed = BodyContactTerm(u, youngs_modulus=1.0e3)
+    u.interpolate(lambda x: -0.5 * x)
+    compressed = BodyContactTerm(u, youngs_modulus=1.0e3)
+    assert compressed.spacing == pytest.approx(0.5 * undeformed.spacing, rel=1e-12)
+    assert compressed.distance == pytest.approx(0.5 * undeformed.distance, rel=1e-12)
+    assert undeformed.spacing == pytest.approx(undeformed.surface.spacing, rel=1e-12)
+
+
 def test_cube_cells_fill_the_cube():
     points, cells = cube_cells(3)
     corners = points[cells]
@@ -253,6 +267,45 @@ def test_needs_a_scale_for_the_stiffness():
     with pytest.raises(ValueError, match="stiffness needs a scale"):
         BodyContactTerm(dolfinx.fem.Function(_compat.vector_function_space(mesh, 1)))
     assert PETSc.IntType is not None
+
+
+@pytest.mark.mpi
+def test_stiffness_adapts_while_the_smallest_distance_keeps_falling_below_ipcs_epsilon():
+    """IPC's rule: κ doubles at a step whose distance fell below 10⁻⁹ of the bounding-box
+    diagonal, and fell further since the last step; a retried step or a distance that does not
+    fall leaves it; it stops at 100 times its start."""
+    comm = MPI.COMM_WORLD
+    mesh = two_cubes(comm, resolution=1)
+    space = _compat.vector_function_space(mesh, 1)
+    u = dolfinx.fem.Function(space)
+    term = BodyContactTerm(u, youngs_modulus=1.0e3)
+    initial = term.stiffness
+    points = mesh.geometry.x
+    local = np.vstack([points.min(axis=0), points.max(axis=0)])
+    low = np.array([comm.allreduce(value, op=MPI.MIN) for value in local[0]])
+    high = np.array([comm.allreduce(value, op=MPI.MAX) for value in local[1]])
+    epsilon = 1.0e-9 * np.linalg.norm(high - low)
+    upper = space.tabulate_dof_coordinates()[:, 2] > 0.5 * (low[2] + high[2])
+
+    def step(t, gap):
+        u.x.array[:] = 0.0
+        u.x.array.reshape(-1, 3)[upper, 2] = gap - GAP
+        term.set_time(t)
+        assert term.minimum_distance() == pytest.approx(gap, rel=1e-3)
+        return term.stiffness / initial
+
+    assert step(1.0, 1.0e-3) == 1.0
+    assert step(2.0, 0.5 * epsilon) == 1.0  # the distance was above ε at the last step
+    assert step(3.0, 0.25 * epsilon) == 2.0
+    assert step(4.0, 0.25 * epsilon) == 2.0  # not falling
+    term.set_time(3.0)  # a cut step goes back to its start and retries from the same state
+    assert step(3.5, 0.25 * epsilon) == 2.0
+    ratios = [step(5.0 + k, 0.2 * epsilon * 0.8**k) for k in range(8)]
+    assert ratios == [4.0, 8.0, 16.0, 32.0, 64.0, 100.0, 100.0, 100.0]
+    state = term.checkpoint_state()
+    fresh = BodyContactTerm(u, youngs_modulus=1.0e3, adaptive_stiffness=False)
+    fresh.restore(state)
+    assert fresh.stiffness == term.stiffness and fresh.energy() == term.energy()
 
 
 @pytest.mark.mpi
