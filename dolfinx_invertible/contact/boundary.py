@@ -21,10 +21,15 @@ from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
 
-__all__ = ["BoundaryVertices"]
+__all__ = ["BoundaryVertices", "vertex_spacing"]
 
 _FAMILIES = ("Lagrange", "Q", "CG")
 _DEGREES = (1, 2)
+
+
+def vertex_spacing(area: float, count: int, dimension: int) -> float:
+    """Return h = (area / count)^(1/(d−1)): the spacing of ``count`` vertices on a boundary."""
+    return (area / count) ** (1.0 / (dimension - 1))
 
 
 class BoundaryVertices:
@@ -114,7 +119,7 @@ class BoundaryVertices:
         self.count = int(self.comm.allreduce(len(selected), op=MPI.SUM))
         if self.count == 0:
             raise ValueError("the mesh has no boundary vertices")
-        self.spacing = (self.area / self.count) ** (1.0 / (dimension - 1))
+        self.spacing = vertex_spacing(self.area, self.count, dimension)
 
     def __len__(self) -> int:
         return len(self.blocks)

@@ -22,6 +22,7 @@ import scipy.sparse
 import scipy.sparse.csgraph
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.contact.boundary import vertex_spacing
 
 __all__ = ["GatheredSurface"]
 
@@ -148,7 +149,7 @@ class GatheredSurface:
     def spacing_at(self, positions: np.ndarray) -> float:
         """Return the vertex spacing (area / N)^(1/(d−1)) of the surface at ``positions``."""
         area = float(np.sum(self.facet_measures(positions)))
-        return (area / len(self.global_blocks)) ** (1.0 / (self.dimension - 1))
+        return vertex_spacing(area, len(self.global_blocks), self.dimension)
 
     def facet_measures(self, positions: np.ndarray) -> np.ndarray:
         """Areas (3D) or lengths (2D) of the surface facets at ``positions``, (M,)."""
