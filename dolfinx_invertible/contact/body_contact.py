@@ -237,6 +237,7 @@ class BodyContactTerm:
         self._last_minimum: float | None = None  # the smallest distance at the last step's start
         self._collisions = _collision_set()
         self._collisions_at: np.ndarray | None = None
+        self._minimum_at: tuple[np.ndarray, float] | None = None
         self._global_dofs = self.surface.global_dofs().astype(PETSc.IntType)
         owned = self.surface.owned
         self._facets_of_edges: np.ndarray | None = None
@@ -335,14 +336,20 @@ class BodyContactTerm:
         when no pair is that close.
         """
         positions = np.asfortranarray(self.positions())
+        # The runner logs it at a step's end and the adaptive κ reads it at the next step's
+        # start, from the same positions: search once.
+        if self._minimum_at is not None and np.array_equal(self._minimum_at[0], positions):
+            return self._minimum_at[1]
         spacing = self.spacing
         nearby = _collision_set()
         nearby.build(self.collision_mesh, positions, spacing, broad_phase=ipctk.HashGrid())
-        if len(nearby) == 0:
-            return spacing
-        # ipctk measures squared distances.
-        squared = float(nearby.compute_minimum_distance(self.collision_mesh, positions))
-        return min(math.sqrt(max(squared, 0.0)), spacing)
+        minimum = spacing
+        if len(nearby):
+            # ipctk measures squared distances.
+            squared = float(nearby.compute_minimum_distance(self.collision_mesh, positions))
+            minimum = min(math.sqrt(max(squared, 0.0)), spacing)
+        self._minimum_at = (positions.copy(), minimum)
+        return minimum
 
     def intersecting_pairs(self, positions: np.ndarray | None = None) -> np.ndarray:
         """Pairs of surface facets that cross each other, (k, 2), each pair once (collective).
