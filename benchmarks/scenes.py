@@ -20,6 +20,7 @@ unknown at resolution 48 within 2× of resolution 16's.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import tempfile
@@ -32,7 +33,9 @@ RESOLUTIONS = (8, 16, 24, 32, 48)
 PATHS = ("direct", "iterative")
 
 
-def measure(scene_name: str, resolution: int, path: str, steps: int | None, pc: str) -> dict:
+def measure(
+    scene_name: str, resolution: int, path: str, steps: int | None, pc: str, elastic: str
+) -> dict:
     """Run one scene on ``MPI.COMM_WORLD`` (collective); a JSON-ready row."""
     from mpi4py import MPI
 
@@ -40,7 +43,13 @@ def measure(scene_name: str, resolution: int, path: str, steps: int | None, pc: 
 
     comm = MPI.COMM_WORLD
     scene = get_scene(scene_name)
-    values = {**scene.defaults, "resolution": resolution, "linear_solver": path, "pc": pc}
+    values = {
+        **scene.defaults,
+        "resolution": resolution,
+        "linear_solver": path,
+        "pc": pc,
+        "elastic": elastic,
+    }
     if steps is not None:
         if scene.dynamic:
             values["t_end"] = steps * values.get("dt", Parameters.dt)
@@ -73,6 +82,7 @@ def measure(scene_name: str, resolution: int, path: str, steps: int | None, pc: 
         "ranks": comm.size,
         "path": path,
         "pc": pc,
+        "elastic": summary["parameters"]["elastic"],  # the route the run took
         "cells": timer.cells,
         "unknowns": summary["dofs"],
         "outcome": summary["outcome"],
@@ -88,43 +98,53 @@ def measure(scene_name: str, resolution: int, path: str, steps: int | None, pc: 
         "krylov_per_newton": summary["linear_iterations"] / max(newton, 1),
         "stepping_seconds": stepping_seconds,
         "seconds_per_step": stepping_seconds / steps_taken,
+        "seconds_per_newton": stepping_seconds / max(newton, 1),
         "seconds_per_step_per_1e5": stepping_seconds / steps_taken / (summary["dofs"] / 1e5),
         "peak_rss_mib": peak / 2**20,
         "reason": summary.get("reason"),
     }
 
 
-def run(scenes, resolutions, ranks, paths, steps: int | None, pc: str, timeout: float) -> dict:
+def run(
+    scenes,
+    resolutions,
+    ranks,
+    paths,
+    steps: int | None,
+    pc: str,
+    timeout: float,
+    elastic=("kernels",),
+) -> dict:
     """Run every combination in a child process each; return the report."""
     report: dict = {"benchmark": "scenes", "machine": common.machine(), "rows": []}
     with tempfile.TemporaryDirectory(prefix="bench_scenes_") as directory:
-        for scene in scenes:
-            for resolution in resolutions:
-                for count in ranks:
-                    for path in paths:
-                        report["rows"].append(
-                            _child(directory, scene, resolution, count, path, steps, pc, timeout)
-                        )
-                        print(_row_text(report["rows"][-1]), flush=True)
+        for scene, resolution, count, path, route in itertools.product(
+            scenes, resolutions, ranks, paths, elastic
+        ):
+            single = f"{scene}:{resolution}:{count}:{path}"
+            report["rows"].append(_child(directory, single, steps, pc, route, timeout))
+            print(_row_text(report["rows"][-1]), flush=True)
     common.record_load_after(report)
     return report
 
 
-def _child(directory, scene, resolution, count, path, steps, pc, timeout) -> dict:
-    output = os.path.join(directory, f"{scene}-{resolution}-{count}-{path}.json")
-    arguments = ["--worker", "--single", f"{scene}:{resolution}:{count}:{path}", "--pc", pc]
+def _child(directory, single, steps, pc, elastic, timeout) -> dict:
+    scene, resolution, count, path = single.split(":")
+    output = os.path.join(directory, f"{single.replace(':', '-')}-{elastic}.json")
+    arguments = ["--worker", "--single", single, "--pc", pc, "--elastic", elastic]
     arguments += ["--json", output]
     if steps is not None:
         arguments += ["--steps", str(steps)]
-    command = common.bench_command("scenes", arguments, count)
+    command = common.bench_command("scenes", arguments, int(count))
     try:
         wall = common.run_child(command, common.child_environment(), timeout)
     except Exception as error:  # a run that breaks is a row of the table, not its end
         return {
             "scene": scene,
-            "resolution": resolution,
-            "ranks": count,
+            "resolution": int(resolution),
+            "ranks": int(count),
             "path": path,
+            "elastic": elastic,
             "outcome": "error",
             "reason": str(error)[-500:],
         }
@@ -140,6 +160,7 @@ _COLUMNS = (
     ("resolution", "res", 4, ">"),
     ("ranks", "np", 3, ">"),
     ("path", "path", 10, ">"),
+    ("elastic", "elastic", 7, ">"),
     ("cells", "cells", 9, ">"),
     ("unknowns", "unknowns", 9, ">"),
     ("outcome", "outcome", 17, ">"),
@@ -147,6 +168,7 @@ _COLUMNS = (
     ("newton_per_step", "Newton/st", 9, ">.2f"),
     ("krylov_per_newton", "Kryl/Newt", 9, ">.1f"),
     ("seconds_per_step", "s/step", 9, ">.2f"),
+    ("seconds_per_newton", "s/Newton", 9, ">.3f"),
     ("seconds_per_step_per_1e5", "s/st/1e5", 9, ">.2f"),
     ("peak_rss_mib", "MiB/rank", 8, ">.0f"),
 )
@@ -182,6 +204,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--paths", nargs="+", default=list(PATHS), choices=PATHS, help="linear solver paths"
     )
     parser.add_argument("--pc", default="gamg", choices=("gamg", "hypre"), help="AMG (iterative)")
+    parser.add_argument(
+        "--elastic",
+        nargs="+",
+        default=["kernels"],
+        choices=("kernels", "ufl"),
+        help="how the elastic energy is assembled: this package's kernels, DOLFINx's UFL route "
+        "(plain Neo-Hookean; only where nothing inverts), or both for a paired comparison "
+        "(default kernels)",
+    )
     parser.add_argument("--steps", type=int, help="stop every run after this many steps")
     parser.add_argument(
         "--single", metavar="SCENE:RESOLUTION:RANKS:PATH", help="run this one row only"
@@ -197,7 +228,8 @@ def command(arguments: argparse.Namespace) -> int:
         from mpi4py import MPI
 
         scene, resolution, _, path = arguments.single.split(":")
-        row = measure(scene, int(resolution), path, arguments.steps, arguments.pc)
+        (elastic,) = arguments.elastic
+        row = measure(scene, int(resolution), path, arguments.steps, arguments.pc, elastic)
         if MPI.COMM_WORLD.rank == 0:
             with open(arguments.json, "w", encoding="utf-8") as file:
                 json.dump(row, file)
@@ -207,6 +239,6 @@ def command(arguments: argparse.Namespace) -> int:
         selection = ([scene], [int(resolution)], [int(ranks)], [path])
     else:
         selection = (arguments.scenes, arguments.resolutions, arguments.ranks, arguments.paths)
-    report = run(*selection, arguments.steps, arguments.pc, arguments.timeout)
+    report = run(*selection, arguments.steps, arguments.pc, arguments.timeout, arguments.elastic)
     common.emit(report, table(report), arguments.json)
     return 0

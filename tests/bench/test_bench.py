@@ -17,6 +17,7 @@ from benchmarks import compile as bench_compile
 from benchmarks import memory as bench_memory
 from benchmarks import points as bench_points
 from benchmarks import scaling as bench_scaling
+from benchmarks import scenes as bench_scenes
 from benchmarks import solve as bench_solve
 
 OPERATIONS = ("residual", "tangent", "newton_step")
@@ -101,6 +102,24 @@ def test_scaling_and_memory_in_child_processes():
     peaks = [memory["peak_rss_bytes_total"][name] for name in bench_memory.STAGES]
     assert peaks == sorted(peaks) and peaks[0] > 0  # ru_maxrss never decreases
     assert bench_memory.table(memory)
+
+
+def test_scene_rows_pair_the_kernels_with_dolfinx_ufl_route():
+    # The twisting column never leaves the Neo-Hookean region (no extension), so our kernels and
+    # FFCx's UFL Neo-Hookean minimise the same energy: the same Newton iterations, the same
+    # outcome, on the path the benchmark forces.
+    report = bench_scenes.run(
+        ["twisting-column"], [1], [1], ["iterative"], 2, "gamg", 600.0, ("kernels", "ufl")
+    )
+    json.dumps(report)
+    kernels, ufl = report["rows"]
+    assert (kernels["elastic"], ufl["elastic"]) == ("kernels", "ufl")
+    for row in (kernels, ufl):
+        assert row["path"] == "iterative" and row["cut_short"] and row["steps"] == 2
+        assert row["seconds_per_newton"] > 0.0 and row["krylov_per_newton"] > 0.0
+    assert kernels["outcome"] == ufl["outcome"]
+    assert kernels["newton"] == ufl["newton"] and kernels["unknowns"] == ufl["unknowns"]
+    assert "s/Newton" in bench_scenes.table(report)
 
 
 @pytest.mark.mpi

@@ -225,3 +225,43 @@ def test_quick_report_from_the_command_line(tmp_path):
         assert first["outcome"] == second["outcome"], (first, second)
         newton = int(first["newton_total"]), int(second["newton_total"])
         assert abs(newton[0] - newton[1]) <= 0.03 * max(newton), (first, second)
+
+
+def test_resolution_axis_runs_the_chosen_cells_at_the_chosen_resolution(tmp_path):
+    from dolfinx_invertible.reports.stability.report import run
+
+    result = run(
+        tmp_path,
+        workers=1,
+        scenes=["collapse"],
+        methods=["nh-c2"],
+        poisson_ratios=[0.45],
+        youngs_moduli=[1.0e5],
+        time_steps=[1.0e-2],
+        resolution=2,
+    )
+    assert result["cells"] == 1
+    with (tmp_path / "stability.csv").open() as stream:
+        (row,) = list(csv.DictReader(stream))
+    assert (row["scene"], row["method"], float(row["nu"])) == ("collapse", "nh-c2", 0.45)
+    # Resolution 2 is not the scene's own (4): the run took the axis' value.
+    assert stability.SCENE_SETUPS["collapse"].resolution != 2
+    assert int(row["resolution"]) == 2
+    assert row["outcome"] in outputs._DISPLAY
+    assert "| collapse | 2 |" in (tmp_path / "stability.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"poisson_ratios": [0.4]}, "nu = 0.4 is not on the study's axis"),
+        ({"time_steps": [0.5]}, "dt = 0.5 is not on the study's axis"),
+        ({"resolution": 0}, "resolution must be a positive integer"),
+    ],
+)
+def test_values_off_the_study_axes_are_refused(tmp_path, options, message):
+    from dolfinx_invertible.reports.stability.report import run
+
+    with pytest.raises(ValueError, match=message):
+        run(tmp_path, scenes=["collapse"], methods=["nh-c2"], **options)
+    assert not (tmp_path / "cells.jsonl").exists()

@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 
 from dolfinx_invertible.reports.stability.report import run
-from dolfinx_invertible.reports.stability.study import METHODS, SCENES
+from dolfinx_invertible.reports.stability.study import (
+    METHODS,
+    POISSON_RATIOS,
+    SCENES,
+    TIME_STEPS,
+    YOUNGS_MODULI,
+)
 
 __all__ = ["add_arguments", "command"]
 
@@ -33,6 +39,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=[method.name for method in METHODS],
         help="only this method (repeatable)",
     )
+    for flag, values, label in (
+        ("--nu", POISSON_RATIOS, "Poisson ratio"),
+        ("--E", YOUNGS_MODULI, "Young's modulus"),
+        ("--dt", TIME_STEPS, "time step"),
+    ):
+        parser.add_argument(
+            flag,
+            action="append",
+            type=float,
+            choices=values,
+            metavar=flag[2:].upper(),
+            help=f"only this {label} of the matrix, one of {', '.join(map(str, values))} "
+            "(repeatable)",
+        )
+    parser.add_argument(
+        "--resolution",
+        type=int,
+        help="run every scene at this mesh resolution (the study's resolution axis; default: "
+        "each scene's own, 4 for the relaxations, 2 for the driven scenes)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no line per finished cell")
 
 
@@ -42,6 +68,8 @@ def command(arguments: argparse.Namespace) -> int:
 
     if arguments.workers < 1:
         raise SystemExit("--workers must be at least 1")
+    if arguments.resolution is not None and arguments.resolution < 1:
+        raise SystemExit("--resolution must be at least 1")
 
     def interrupt(number, frame):
         raise KeyboardInterrupt(f"stopped by {signal.Signals(number).name}")
@@ -55,6 +83,11 @@ def command(arguments: argparse.Namespace) -> int:
         words.append(f"--scene {scene}")
     for method in arguments.method or ():
         words.append(f"--method {method}")
+    for flag in ("nu", "E", "dt"):
+        for value in getattr(arguments, flag) or ():
+            words.append(f"--{flag} {value:g}")
+    if arguments.resolution is not None:
+        words.append(f"--resolution {arguments.resolution}")
     result = run(
         arguments.out,
         quick=arguments.quick,
@@ -62,6 +95,10 @@ def command(arguments: argparse.Namespace) -> int:
         resume=arguments.resume,
         scenes=arguments.scene,
         methods=arguments.method,
+        poisson_ratios=arguments.nu,
+        youngs_moduli=arguments.E,
+        time_steps=arguments.dt,
+        resolution=arguments.resolution,
         progress=not arguments.quiet,
         command_line=" ".join(words),
     )

@@ -276,13 +276,14 @@ def summary_lines(
         "",
     ]
     setup_rows = []
+    resolutions = {record["scene"]: record.get("resolution") for record in records}
     for scene in SCENES:
         cell = Cell(scene, METHODS[0].name, POISSON_RATIOS[0], YOUNGS_MODULI[1], TIME_STEPS[0])
         parameters = cell.parameters()
         setup_rows.append(
             (
                 scene,
-                parameters["resolution"],
+                resolutions.get(scene) or parameters["resolution"],
                 f"{parameters['t_end'] / cell.time_unit:g}",
                 f"{parameters['damping']:g}",
             )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import pathlib
@@ -19,7 +20,15 @@ from dolfinx_invertible.reports.stability.outputs import (
     write_csv,
 )
 from dolfinx_invertible.reports.stability.pool import run_cells
-from dolfinx_invertible.reports.stability.study import METHODS_BY_NAME, SCENES, matrix, method_label
+from dolfinx_invertible.reports.stability.study import (
+    METHODS_BY_NAME,
+    POISSON_RATIOS,
+    SCENES,
+    TIME_STEPS,
+    YOUNGS_MODULI,
+    matrix,
+    method_label,
+)
 
 __all__ = ["run"]
 
@@ -32,6 +41,10 @@ def run(
     resume: bool = False,
     scenes: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
+    poisson_ratios: Sequence[float] | None = None,
+    youngs_moduli: Sequence[float] | None = None,
+    time_steps: Sequence[float] | None = None,
+    resolution: int | None = None,
     progress: bool = False,
     command_line: str | None = None,
 ) -> dict[str, Any]:
@@ -49,8 +62,12 @@ def run(
     resume
         Reuse the records in ``cells.jsonl`` of cells of this matrix that ran with the same
         parameters.
-    scenes, methods
-        Restrict the matrix (for development); ``None``: all.
+    scenes, methods, poisson_ratios, youngs_moduli, time_steps
+        Restrict the matrix to these values of its axes; ``None``: all. A value that is not
+        on its axis is refused.
+    resolution
+        Run every scene at this mesh resolution instead of its own (:data:`SCENE_SETUPS`): the
+        study's resolution axis, one output directory per resolution.
     progress
         Print one line per finished cell.
     command_line
@@ -70,10 +87,26 @@ def run(
             f"unknown scene or method {', '.join(unknown)}; scenes: {', '.join(SCENES)}; "
             f"methods: {', '.join(METHODS_BY_NAME)}"
         )
+    axes = (
+        ("nu", poisson_ratios, POISSON_RATIOS),
+        ("E", youngs_moduli, YOUNGS_MODULI),
+        ("dt", time_steps, TIME_STEPS),
+    )
+    for name, chosen, values in axes:
+        off_axis = [value for value in chosen or () if value not in values]
+        if off_axis:
+            raise ValueError(
+                f"{name} = {', '.join(map(str, off_axis))} is not on the study's axis: "
+                f"{', '.join(map(str, values))}"
+            )
+    if resolution is not None and not (isinstance(resolution, int) and resolution >= 1):
+        raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
     cells = [
-        cell
+        dataclasses.replace(cell, resolution=resolution)
         for cell in matrix(quick)
-        if (not scenes or cell.scene in scenes) and (not methods or cell.method in methods)
+        if (not scenes or cell.scene in scenes)
+        and (not methods or cell.method in methods)
+        and all(not chosen or getattr(cell, name) in chosen for name, chosen, _ in axes)
     ]
     records_path = directory / "cells.jsonl"
     done: dict[tuple, dict[str, Any]] = {}

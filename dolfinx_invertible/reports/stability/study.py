@@ -148,13 +148,17 @@ SCENE_SETUPS = {
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
-    """One cell of the matrix: a scene, a method and the material and time-step values."""
+    """One cell of the matrix: a scene, a method and the material and time-step values.
+
+    ``resolution`` is the scene's mesh resolution; ``None`` takes :data:`SCENE_SETUPS`'s.
+    """
 
     scene: str
     method: str
     nu: float
     E: float
     dt: float
+    resolution: int | None = None
 
     @property
     def key(self) -> tuple[str, str, float, float, float]:
@@ -213,7 +217,7 @@ class Cell:
             dt=self.dt,
             t_end=end_time * self.time_unit,
             size=SIZE,
-            resolution=setup.resolution,
+            resolution=setup.resolution if self.resolution is None else self.resolution,
             damping=own.damping if setup.damping is None else setup.damping,
         )
         return values
