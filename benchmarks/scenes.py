@@ -182,6 +182,9 @@ def _row_text(row: dict) -> str:
     text = " ".join(parts)
     if row.get("cut_short"):
         text += "  (cut short)"
+    if row.get("outcome") == "error":
+        lines = [line for line in str(row.get("reason", "")).splitlines() if line.strip()]
+        text += f"  ({lines[-1].strip() if lines else 'no output'})"
     return text
 
 
