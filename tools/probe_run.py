@@ -84,7 +84,7 @@ class Probe(RunObserver):
                 f"  {iteration.iteration:3d} |r| {iteration.residual_norm:.3e} energy "
                 f"{iteration.energy} {iteration.direction:9s} step {iteration.step_length:.3g} "
                 f"cap {iteration.step_cap:.3g} Krylov {iteration.linear_iterations:4d} "
-                f"{iteration.linear_reason}"
+                f"{iteration.linear_reason} AMG on {run.minimizer.directions.preconditioned_by}"
             )
 
     def attempt(self, run, attempt) -> None:

@@ -20,6 +20,14 @@ by a direction strategy:
 
 With a tangent switch, the next tangent is the exact one only in Newton's local phase, after a
 full (unshortened) step; the projected one otherwise.
+
+On the iterative path an iteration with the exact tangent K needs a preconditioner that is
+positive definite. While the truncated CG has met no negative curvature in the last exact
+iteration, the preconditioner is built on K itself: one tangent assembled, and AMG on the
+operator CG runs on, as plain Newton–CG. Where it meets negative curvature (or AMG on K is not
+definite) the iteration's direction is computed again with AMG on the projected tangent K₊ (the
+truncated CG on K, then on K₊ or a blend), and K₊ preconditions the exact iterations until one
+of them meets no negative curvature again.
 """
 
 from __future__ import annotations
@@ -153,6 +161,12 @@ class NewtonDirections:
         blend included) and from a blend.
     replacement_linear_iterations
         Krylov iterations of the current iteration's replacement solves.
+    exact_preconditioner
+        Whether the next exact iteration of the iterative path preconditions with AMG on the
+        exact tangent (no negative curvature met in the last one) rather than the projected.
+    preconditioned_by
+        What the current iteration's preconditioning matrix is: ``"exact"``, ``"projected"``,
+        or ``"exact failed"`` (solved again with the projected one, see :meth:`settle`).
     """
 
     def __init__(
@@ -185,6 +199,8 @@ class NewtonDirections:
         if options.linear_solver == "iterative" and tangent_switch is not None:
             self.preconditioner = problem.create_matrix()
             self.preconditioner.setNearNullSpace(near_nullspace)
+        self.exact_preconditioner = True
+        self.preconditioned_by = "projected"
         self._projected = ProjectedTangent()
         self._blended = BlendedTangent()
         #: The truncated CG solving for the directions where the iterative path runs it.
@@ -223,7 +239,9 @@ class NewtonDirections:
         """SNES Jacobian callback: the exact tangent, or outside Newton's local phase projected.
 
         On the iterative path SNES hands :attr:`preconditioner` as both matrices: the tangent
-        goes into :attr:`matrix` (the truncated CG's operator), the projected one into ``P``.
+        goes into :attr:`matrix` (the truncated CG's operator), and into ``P`` the tangent the
+        preconditioner is built on (the projected one, or the exact one while it has shown no
+        negative curvature).
         """
         if P.handle == self.preconditioner.handle and P.handle != self.matrix.handle:
             A = self.matrix
@@ -233,23 +251,30 @@ class NewtonDirections:
         self.replacement_linear_iterations = 0
         if self.truncated is not None:
             self.truncated.blend = self._blending()
+        self._assemble_tangent_into(x, A, projected)
+        self.preconditioned_by = "projected"
+        if P is not None and P.handle != A.handle:
+            if projected or (self.exact_preconditioner and self.truncated is not None):
+                if P.assembled:
+                    copy_into(A, P)
+                else:  # a copy needs an assembled target
+                    self._assemble_tangent_into(x, P, projected)
+                if not projected:
+                    self.preconditioned_by = "exact"
+            else:
+                self._assemble_tangent_into(x, P, True)
+        if self.truncated is not None:
+            self.truncated.restart = self.preconditioned_by != "exact"
+        self._assembled(A)
+
+    def _assemble_tangent_into(self, x: PETSc.Vec, matrix: PETSc.Mat, projected: bool) -> None:
         if projected:
             self.tangent_switch(True)
         try:
-            self.problem.J(snes, x, A, A)
+            self.problem.J(None, x, matrix, matrix)
         finally:
             if projected:
                 self.tangent_switch(False)
-        if P is not None and P.handle != A.handle:
-            if projected:
-                copy_into(A, P)
-            else:
-                self.tangent_switch(True)
-                try:
-                    self.problem.J(snes, x, P, P)
-                finally:
-                    self.tangent_switch(False)
-        self._assembled(A)
 
     def assemble_projected(self, x: PETSc.Vec) -> None:
         """Assemble the projected tangent at ``x`` into :attr:`matrix`."""
@@ -292,6 +317,9 @@ class NewtonDirections:
         """
         reason = ksp.getConvergedReason()
         truncated = self.truncated
+        if truncated is not None and not self.projected_now and reason > 0:
+            if self.preconditioned_by == "projected":
+                self.exact_preconditioner = truncated.outcome == "exact"
         if truncated is not None and not self.projected_now:
             if truncated.outcome in (ProjectedTangent.kind, BlendedTangent.kind):
                 # Negative curvature: the truncated CG solved with the projected tangent or a
@@ -320,6 +348,23 @@ class NewtonDirections:
     def _blending(self) -> bool:
         """Whether the current iteration blends: after ``blend_after`` projected iterations."""
         return self.blend_after is not None and self.projected_iterations >= self.blend_after
+
+    def settle(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
+        """Solve again with AMG on K₊ where AMG on the exact tangent failed at ``x``.
+
+        The truncated CG on K with the exact tangent's own preconditioner stops at negative
+        curvature (or an indefinite preconditioner); the direction is then the iterative path's
+        usual one, and K₊ preconditions the exact iterations from now on (until one meets no
+        negative curvature). Call before :meth:`judge`.
+        """
+        if self.preconditioned_by != "exact" or ksp.getConvergedReason() > 0:
+            return
+        self.preconditioned_by = "exact failed"
+        self.exact_preconditioner = False
+        self._assemble_tangent_into(x, self.preconditioner, True)
+        self.truncated.restart = True
+        self.solve(ksp, y, replacement=False)
+        self.replacement_linear_iterations += int(ksp.getIterationNumber())
 
     def replace(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
         """Compute the direction at ``x`` again with the strategy in effect."""

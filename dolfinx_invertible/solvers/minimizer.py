@@ -280,6 +280,7 @@ class EnergyMinimizer:
         has_energy = self.problem.has_energy
         monitors = self._monitors
         monitors.start_direction()
+        directions.settle(x, y, ksp)
         ok, why = directions.judge(ksp, y, has_energy=has_energy)
         directions.count_iteration()
         if search.watching:
@@ -377,6 +378,7 @@ class EnergyMinimizer:
             directions = self.directions
             directions.assemble(self.snes, self._x, *directions.snes_matrices)
             directions.solve(ksp, direction, replacement=False)
+            directions.settle(self._x, direction, ksp)
         finally:
             self._restore(u_vector)
         return int(ksp.getIterationNumber())

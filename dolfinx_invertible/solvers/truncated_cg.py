@@ -47,6 +47,10 @@ class TruncatedCG:
         Past negative curvature, solve with the blend w K + (1 − w) K₊ of the largest weight
         that the directions met allow (restarting from the iterate reached), rather than with
         K₊ alone.
+    restart
+        Past negative curvature, restart with the projected tangent or a blend (``True``), or
+        stop with ``DIVERGED_INDEFINITE_MAT`` (``False``: the preconditioner is built on the
+        exact tangent, which then cannot precondition the projected one).
     weight
         The weight w of the last solve's direction: 1 exact, 0 projected.
     outcome
@@ -59,6 +63,7 @@ class TruncatedCG:
     def __init__(self) -> None:
         self.operator: PETSc.Mat | None = None
         self.blend = False
+        self.restart = True
         self.weight = 1.0
         self.outcome = "failed"
         self.curvature_iteration: int | None = None
@@ -111,6 +116,9 @@ class TruncatedCG:
                 break
             if self.curvature_iteration is None:
                 self.curvature_iteration = iterations
+            if not self.restart:
+                reason = _REASONS.DIVERGED_INDEFINITE_MAT
+                break
             restarts += 1
             weight = min(weight, limit) * BLEND_MARGIN if self.blend else 0.0
             if weight < SMALLEST_WEIGHT or restarts > MAX_RESTARTS:

@@ -112,6 +112,69 @@ def test_unprojected_tangent_converges_quadratically():
     assert rates[-1] >= 1.8
 
 
+def _pulled_beam(linear_solver: str):
+    """Solve the beam pulled along its axis; return the solution, the directions and the
+    arguments of every tangent switch."""
+    mesh, u, bc, traction, end = beam()
+    problem = HyperelasticProblem(
+        u,
+        Material(NeoHookean(mu=MU, lam=LAM), C2()),
+        [bc],
+        external_energy=-ufl.dot(traction, u) * end,
+        linear_solver=linear_solver,
+        petsc_options={"snes_rtol": 1e-10},
+    )
+    directions = problem.solver.directions
+    switched = []
+    switch = directions.tangent_switch
+
+    def counted_switch(projected: bool) -> None:
+        switched.append(projected)
+        switch(projected)
+
+    directions.tangent_switch = counted_switch
+    traction.value[:] = (30.0, 0.0, 0.0)
+    assert problem.solve().converged
+    return values_at_points(u, PROBE_POINTS), directions, switched
+
+
+@pytest.mark.mpi
+def test_iterative_path_preconditions_with_the_exact_tangent_while_it_is_definite():
+    """Pulled, the beam's exact tangent has no negative curvature: AMG is built on it and the
+    projected tangent is never assembled; the solution is the direct solver's."""
+    direct, _, _ = _pulled_beam("direct")
+    iterative, directions, switched = _pulled_beam("iterative")
+    assert directions.exact_preconditioner
+    assert True not in switched  # never projected
+    assert np.allclose(iterative, direct, rtol=1e-7, atol=1e-10)
+
+
+@pytest.mark.mpi
+def test_iterative_path_falls_back_to_the_projected_preconditioner_and_back():
+    """Collapsed, the exact tangent has negative curvature: the first exact iteration's AMG on
+    K fails, the direction is solved again with AMG on K₊, and K₊ preconditions the exact
+    iterations until one meets no negative curvature; then AMG is built on K again."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    material = Material(NeoHookean(mu=MU, lam=LAM), C2(0.9))
+    dynamics = ImplicitDynamics(u, material, density=1.0, dt=0.02, linear_solver="iterative")
+    directions = dynamics.problem.solver.directions
+    states = []
+    dynamics.problem.add_monitor(
+        on_iteration=lambda iteration: (
+            iteration.iteration > 0
+            and states.append((iteration.direction, directions.preconditioned_by))
+        )
+    )
+    dynamics.advance(0.4)
+    assert states[0] == ("projected", "exact failed")  # AMG on K met negative curvature
+    assert states[1][1] == "projected"  # so K₊ preconditions the next iteration
+    assert states[-1] == ("exact", "exact")  # at rest K preconditions itself again
+    final = summary(cell_diagnostics(u, material), mesh.comm)
+    assert final["inverted_cells"] == 0 and final["min_J"] > 0.95
+
+
 @pytest.mark.mpi
 def test_inverted_scene_same_solution_on_any_number_of_ranks():
     """Start with inverted elements (C2): the equilibrium is independent of the partition."""

@@ -18,7 +18,14 @@ def _matrix(dense: np.ndarray) -> PETSc.Mat:
     return matrix
 
 
-def _solve(operator: np.ndarray, preconditioner: np.ndarray, rhs: np.ndarray, pc: str):
+def _solve(
+    operator: np.ndarray,
+    preconditioner: np.ndarray,
+    rhs: np.ndarray,
+    pc: str,
+    *,
+    restart: bool = True,
+):
     A, P = _matrix(operator), _matrix(preconditioner)
     b = PETSc.Vec().createWithArray(rhs.copy(), comm=PETSc.COMM_SELF)
     x = b.duplicate()
@@ -26,6 +33,7 @@ def _solve(operator: np.ndarray, preconditioner: np.ndarray, rhs: np.ndarray, pc
     context = truncated_cg(ksp)
     ksp.setOperators(P, P)  # the preconditioner sees only the SPD matrix
     context.operator = A
+    context.restart = restart
     ksp.getPC().setType(pc)
     ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=500)
     ksp.solve(b, x)
@@ -67,6 +75,16 @@ def test_negative_curvature_switches_to_the_preconditioning_matrix():
     np.testing.assert_allclose(x, np.linalg.solve(projected, rhs), rtol=1e-10, atol=1e-12)
     assert rhs @ x > 0.0  # a descent direction for the step x ↦ −x of SNES
     assert iterations == context.curvature_iteration + 1
+
+
+def test_without_restart_negative_curvature_fails_the_solve():
+    """Preconditioned by a factorisation of the indefinite operator itself (which cannot
+    precondition the projected one), the solve stops where CG meets the negative curvature."""
+    operator = np.diag([1.0, 2.0, -5.0])
+    rhs = np.array([0.1, 0.1, 1.0])
+    reason, iterations, _, context = _solve(operator, np.eye(3), rhs, "none", restart=False)
+    assert reason == REASONS.DIVERGED_INDEFINITE_MAT
+    assert context.outcome == "failed" and context.curvature_iteration == iterations == 0
 
 
 def test_curvature_is_detected_where_cg_meets_it():
