@@ -78,8 +78,8 @@ def test_negative_curvature_switches_to_the_preconditioning_matrix():
 
 
 def test_without_restart_negative_curvature_fails_the_solve():
-    """Preconditioned by a factorisation of the indefinite operator itself (which cannot
-    precondition the projected one), the solve stops where CG meets the negative curvature."""
+    """Without restarts (the iterative path's AMG built on the exact tangent, which cannot
+    precondition the projected one), the solve stops where CG meets negative curvature."""
     operator = np.diag([1.0, 2.0, -5.0])
     rhs = np.array([0.1, 0.1, 1.0])
     reason, iterations, _, context = _solve(operator, np.eye(3), rhs, "none", restart=False)
