@@ -317,10 +317,9 @@ class NewtonDirections:
         """
         reason = ksp.getConvergedReason()
         truncated = self.truncated
-        if truncated is not None and not self.projected_now and reason > 0:
-            if self.preconditioned_by == "projected":
-                self.exact_preconditioner = truncated.outcome == "exact"
         if truncated is not None and not self.projected_now:
+            if reason > 0 and self.preconditioned_by == "projected":
+                self.exact_preconditioner = truncated.outcome == "exact"
             if truncated.outcome in (ProjectedTangent.kind, BlendedTangent.kind):
                 # Negative curvature: the truncated CG solved with the projected tangent or a
                 # definite blend instead.
