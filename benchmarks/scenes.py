@@ -7,8 +7,9 @@ solver path (``--linear-solver``), each run a child process under ``mpirun -n`` 
 defaults otherwise, and writes one row per run: cells, unknowns, solver path, outcome, steps,
 Newton iterations per step, Krylov iterations per Newton iteration, seconds per step, seconds per
 step per 10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each
-run after N time steps (t_end = N dt; a relaxation then ends "not at rest" unless it got there),
-for sizes whose full run takes too long; the table says which rows were cut short.
+run after N time steps (at t = N dt; the scene's loading keeps its schedule over t_end, so these
+are the first N steps of the whole scene, and a relaxation ends "not at rest" unless it got
+there), for sizes whose full run takes too long; the table says which rows were cut short.
 ``--single SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs).
 
 Targets (docs/performance.md, "Scale"): the outcome at every resolution equals resolution 8's
@@ -52,7 +53,7 @@ def measure(
     }
     if steps is not None:
         if scene.dynamic:
-            values["t_end"] = steps * values.get("dt", Parameters.dt)
+            values["t_stop"] = steps * values.get("dt", Parameters.dt)
         else:
             values["steps"] = steps
     parameters = Parameters(**values)

@@ -137,11 +137,11 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
         time_group = subparser.add_argument_group("time stepping")
         time_group.add_argument("--dt", type=float, metavar="DT", help=f"largest time step [s] "
                                 f"(default: {default('dt'):g})")  # fmt: skip
-        span = time_group.add_mutually_exclusive_group()
-        span.add_argument("--steps", type=int, metavar="N", help="run N steps of dt "
-                          "(t_end = N dt)")  # fmt: skip
-        span.add_argument("--t-end", type=float, metavar="T", dest="t_end", help=f"end time [s] "
-                          f"(default: {default('t_end'):g})")  # fmt: skip
+        time_group.add_argument("--steps", type=int, metavar="N", help="stop after N steps of "
+                                "dt (at t = N dt, at most --t-end); the scene's loading keeps "
+                                "its schedule over --t-end")  # fmt: skip
+        time_group.add_argument("--t-end", type=float, metavar="T", dest="t_end", help=f"end "
+                                f"time [s] (default: {default('t_end'):g})")  # fmt: skip
         time_group.add_argument("--scheme", choices=["backward-euler", "bdf2"],
                                 help=f"time integrator (default: {default('scheme')})")  # fmt: skip
         time_group.add_argument("--damping", type=float, metavar="ZETA", help="mass-proportional "
@@ -247,8 +247,9 @@ def _parameters(scene, arguments: argparse.Namespace):
         if given is not None:
             values[name] = given
     if scene.dynamic and getattr(arguments, "steps", None) is not None:
-        values["t_end"] = arguments.steps * values.get("dt", Parameters.dt)
-        values.pop("steps")
+        if arguments.steps < 1:
+            raise ValueError(f"--steps must be an integer >= 1, got {arguments.steps!r}")
+        values["t_stop"] = values.pop("steps") * values.get("dt", Parameters.dt)
     if getattr(arguments, "extension", None) is None:
         values.setdefault(
             "extension", "c2" if values.get("model", Parameters.model) == "neo-hookean" else "none"
@@ -257,7 +258,11 @@ def _parameters(scene, arguments: argparse.Namespace):
 
 
 def _resumed_parameters(scene, arguments: argparse.Namespace):
-    """Return the parameters of the run in ``--resume DIR``, with a later ``--t-end`` if given."""
+    """Return the parameters of the run in ``--resume DIR``, with a later ``--t-end`` if given.
+
+    The resumed run goes on to its end: where the first one stopped early (``--steps``) does
+    not carry over.
+    """
     from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
     from dolfinx_invertible.scenes.parameters import Parameters
 
@@ -276,6 +281,7 @@ def _resumed_parameters(scene, arguments: argparse.Namespace):
     # The newest checkpoint, whole or in the ranks' parts (a run killed before its first
     # whole checkpoint has only these).
     values = latest_checkpoint(arguments.resume)[1]["parameters"]
+    values["t_stop"] = None
     if arguments.t_end is not None:
         values["t_end"] = arguments.t_end
     return Parameters(**values)

@@ -3,7 +3,7 @@
 A RunObserver on the public API (docs/guide.md, "Watching the solver"); what the measurements
 of docs/performance.md ("Scale") were taken with. Run it like a scene:
 
-    mpirun -n 2 .venv/bin/python tools/probe_run.py collapse --resolution 24 --t-end 0.05 \\
+    mpirun -n 2 .venv/bin/python tools/probe_run.py collapse --resolution 24 --t-stop 0.05 \\
         --linear-solver iterative --verbose
     ... --petsc-option ksp_rtol=1e-8 --problem-option blend_after=0
 """
@@ -25,6 +25,8 @@ def main() -> None:
     parser.add_argument("scene")
     parser.add_argument("--resolution", type=int)
     parser.add_argument("--t-end", type=float, dest="t_end")
+    parser.add_argument("--t-stop", type=float, dest="t_stop", help="stop here; the scene's "
+                        "loading keeps its schedule over t_end")  # fmt: skip
     parser.add_argument("--dt", type=float)
     parser.add_argument("--nu", type=float)
     parser.add_argument("--linear-solver", dest="linear_solver", default="auto")
@@ -35,7 +37,7 @@ def main() -> None:
     arguments = parser.parse_args()
     scene = get_scene(arguments.scene)
     values = dict(scene.defaults)
-    for name in ("resolution", "t_end", "dt", "nu", "linear_solver", "pc"):
+    for name in ("resolution", "t_end", "t_stop", "dt", "nu", "linear_solver", "pc"):
         if getattr(arguments, name) is not None:
             values[name] = getattr(arguments, name)
     petsc = dict(option.partition("=")[::2] for option in arguments.petsc_option)

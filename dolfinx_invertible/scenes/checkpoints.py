@@ -153,10 +153,13 @@ def latest_checkpoint(output: Path) -> tuple[list[Path], dict[str, Any]]:
     return max(candidates, key=lambda candidate: candidate[1]["steps_written"])
 
 
-def check_resumable(output: Path, scene_name: str, parameters: Parameters) -> dict[str, Any]:
+def check_resumable(
+    output: Path, scene_name: str, parameters: Parameters, *, timed_by_end: bool = False
+) -> dict[str, Any]:
     """Return the state of the checkpoint in ``output``; ``ValueError`` if it cannot continue.
 
-    The run must be the same scene with the same parameters, except ``t_end``, which may grow.
+    The run must be the same scene with the same parameters, except where it stops: ``t_end``
+    may grow (unless the scene's loading is ``timed_by_end``), and ``t_stop`` may change.
     """
     _, state = latest_checkpoint(output)
     if state.get("version") != _VERSION:
@@ -167,7 +170,7 @@ def check_resumable(output: Path, scene_name: str, parameters: Parameters) -> di
     differing = [
         name
         for name, value in state["parameters"].items()
-        if name != "t_end" and given.get(name) != value
+        if name not in ("t_end", "t_stop") and given.get(name) != value
     ]
     if differing:
         raise ValueError(
@@ -177,10 +180,15 @@ def check_resumable(output: Path, scene_name: str, parameters: Parameters) -> di
                 for name in differing
             )  # fmt: skip
         )
-    if not parameters.t_end > state["dynamics"]["time"]:
+    if timed_by_end and parameters.t_end != state["parameters"]["t_end"]:
         raise ValueError(
-            f"--t-end {parameters.t_end:g}: the run in {output} is at t = "
-            f"{state['dynamics']['time']:g} already"
+            f"--t-end {parameters.t_end:g}: the {scene_name} scene's loading is timed by the end "
+            f"time of its run ({state['parameters']['t_end']:g} s), which a resumed run keeps"
+        )
+    if not parameters.stop_time > state["dynamics"]["time"]:
+        raise ValueError(
+            f"stopping at t = {parameters.stop_time:g} (--t-end, --steps): the run in {output} "
+            f"is at t = {state['dynamics']['time']:g} already"
         )
     return state
 

@@ -33,6 +33,7 @@ class CompressBlock(Scene):
     description = "a plate presses a block to 20 % of its height, inverting cells, then releases"
     figure = "engineering (inversion under load, recovery)"
     dynamic = True
+    timed_by_end = True
     takes_self_contact = True
     relaxation = True
     defaults = {"E": 1.0e5, "nu": 0.45, "density": 1000.0, "dt": 0.01, "t_end": 1.0,

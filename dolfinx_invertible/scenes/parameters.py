@@ -72,7 +72,13 @@ class Parameters:
     dt
         Time step [s] (dynamic scenes): the largest step the controller takes.
     t_end
-        End time [s] (dynamic scenes).
+        End time [s] (dynamic scenes). A scene's loading schedule may be a share of it (the
+        stretch bar pulls over the first 5/6, the compress block presses and releases at
+        shares of it).
+    t_stop
+        Stop the run at this time [s] (dynamic scenes), before its end: the scene's schedule
+        keeps ``t_end``, so the first steps of a run are the same whatever its length.
+        ``None`` (default) or a time past ``t_end``: at ``t_end``.
     steps
         Load steps (quasi-static scenes).
     resolution
@@ -127,6 +133,7 @@ class Parameters:
     k: float | None = None
     dt: float = 0.01
     t_end: float = 0.4
+    t_stop: float | None = None
     steps: int = 4
     resolution: int = 4
     degree: int = 1
@@ -163,6 +170,8 @@ class Parameters:
             raise ValueError(f"--k must be a finite number >= 0, got {self.k!r}")
         _positive("--dt", self.dt)
         _positive("--t-end", self.t_end)
+        if self.t_stop is not None:
+            _positive("t_stop", self.t_stop)
         if int(self.steps) != self.steps or self.steps < 1:
             raise ValueError(f"--steps must be an integer >= 1, got {self.steps!r}")
         if int(self.resolution) != self.resolution or self.resolution < 1:
@@ -201,6 +210,11 @@ class Parameters:
                 "--elastic ufl (DOLFINx's own route) is plain Neo-Hookean only: use --model "
                 "neo-hookean --extension none"
             )
+
+    @property
+    def stop_time(self) -> float:
+        """Where a dynamic run stops: ``t_stop`` if given and before ``t_end``, else ``t_end``."""
+        return self.t_end if self.t_stop is None else min(self.t_stop, self.t_end)
 
     @property
     def wave_speed(self) -> float:

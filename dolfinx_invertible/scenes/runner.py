@@ -258,7 +258,9 @@ def run_scene(
             )
         if output is None:
             raise ValueError("--resume needs the output directory of the run")
-        checkpoint_state = check_resumable(output, scene_class.name, parameters)
+        checkpoint_state = check_resumable(
+            output, scene_class.name, parameters, timed_by_end=scene_class.timed_by_end
+        )
     if output is not None:
         check_output_directory(output, comm)
         if comm.rank == 0:
@@ -351,7 +353,7 @@ def run_scene(
         log = None if writers else output / f"{scene.name}.jsonl"
         writers.append(VTXResultWriter(output / f"{scene.name}.bp", u, log_path=log))
     dofs = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
-    total = parameters.t_end if scene.dynamic else 1.0
+    total = parameters.stop_time if scene.dynamic else 1.0
     progress = _Progress(not quiet and comm.rank == 0, total, "s" if scene.dynamic else "load")
     failure: dict[str, Any] = {}
     completed = False
@@ -384,7 +386,7 @@ def run_scene(
                     observer.step(run)
 
             if run.dynamics is not None:
-                run.dynamics.advance(parameters.t_end, on_step=step_done)
+                run.dynamics.advance(parameters.stop_time, on_step=step_done)
                 if checkpoints is not None and run.steps % checkpoints != 0:
                     with signals.deferred():
                         write_run_checkpoint(run, output, writers[0].steps_written)

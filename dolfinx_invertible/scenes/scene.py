@@ -35,6 +35,9 @@ class Scene:
         The paper figure it reproduces, or what benchmark it is.
     dynamic
         Implicit dynamics (``True``) or quasi-static load stepping (``False``).
+    timed_by_end
+        Whether the scene's loading is scheduled in shares of ``t_end`` (a plate that presses
+        over the first half of the run, say): a resumed run keeps its ``t_end``.
     relaxation
         A body released from a deformed state: the summary gets ``rest_distance``,
         ``recovered`` and the relaxation outcome.
@@ -71,6 +74,7 @@ class Scene:
     description: ClassVar[str] = ""
     figure: ClassVar[str] = ""
     dynamic: ClassVar[bool] = True
+    timed_by_end: ClassVar[bool] = False
     relaxation: ClassVar[bool] = False
     defaults: ClassVar[dict[str, Any]] = {}
     choices: ClassVar[dict[str, Sequence[Any]]] = {}

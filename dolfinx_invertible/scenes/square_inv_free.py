@@ -30,6 +30,7 @@ class SquareInversionFree(Scene):
     description = "2D square squashed to 10 % and released: plain Neo-Hookean, inversion-free steps"
     figure = "the inversion-free line search (classical alternative)"
     dynamic = True
+    timed_by_end = True
     relaxation = True
     defaults = {"E": 1.0e3, "nu": 0.3, "density": 1.0, "dt": 0.005, "t_end": 0.6,
                 "resolution": 8, "extension": "none", "inversion_free": 0.1,

@@ -34,6 +34,7 @@ class StretchBar(Scene):
     description = "a bar pulled at both ends to 4 times its length; shape of its cross-section"
     figure = "Fig. 6"
     dynamic = True
+    timed_by_end = True
     takes_self_contact = True
     defaults = {"E": 1.0e5, "nu": 0.45, "density": 1000.0, "dt": 0.01, "t_end": 1.2,
                 "resolution": 4}  # fmt: skip

@@ -37,6 +37,7 @@ class TetStretch(Scene):
     description = "one tetrahedron, base held to its plane, top vertex pulled to 5× its height"
     figure = "Figs. 3 and 4"
     dynamic = True
+    timed_by_end = True
     defaults = {"E": 1.0e3, "nu": 0.3, "density": 1.0, "dt": 0.01, "t_end": 2.0,
                 "resolution": 1}  # fmt: skip
 

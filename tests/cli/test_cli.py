@@ -70,6 +70,7 @@ def test_every_command_prints_its_help():
         (["--nu", "0.5"], "--nu must lie in (-1, 0.5)"),
         (["--dt", "0"], "--dt must be a finite number > 0"),
         (["--resolution", "0"], "--resolution must be an integer >= 1"),
+        (["--steps", "0"], "--steps must be an integer >= 1"),
         (["--extension", "ife", "-dolfinx_invertible_snes_linesearch_type", "bt"], "no energy"),
         (["--elastic", "ufl"], "plain Neo-Hookean only"),
     ],
@@ -80,6 +81,20 @@ def test_bad_values_give_one_clear_line_and_no_output(tmp_path, arguments, messa
     lines = completed.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], lines
     assert not (tmp_path / "run" / "summary.json").exists()
+
+
+def test_steps_stop_a_dynamic_run_without_changing_its_schedule(tmp_path):
+    # The stretch bar pulls its ends over 5/6 of t_end: two steps of a 1.2 s run, not a whole
+    # run of two steps.
+    folder = tmp_path / "run"
+    completed = cli("run", "stretch-bar", "--resolution", "1", "--steps", "2", "--quiet",
+                    "--out", str(folder))  # fmt: skip
+    assert completed.returncode == 0, completed.stderr
+    summary = json.loads((folder / "summary.json").read_text())
+    parameters = summary["parameters"]
+    assert parameters["t_end"] == get_scene("stretch-bar").defaults["t_end"]
+    assert parameters["t_stop"] == pytest.approx(2 * parameters["dt"])
+    assert summary["steps"] >= 2 and summary["completed"]
 
 
 def test_unknown_scene_or_option_is_refused():

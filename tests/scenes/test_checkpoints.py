@@ -266,3 +266,25 @@ def test_the_newest_complete_set_of_parts_is_taken(tmp_path):
             _part(tmp_path, generation, rank, 3, steps)
     files, state = latest_checkpoint(tmp_path)
     assert state["steps_written"] == 17 and len(files) == 3
+
+
+def test_a_run_stopped_by_steps_resumes_and_keeps_a_schedule_timed_by_its_end(tmp_path):
+    # The stretch bar pulls over 5/6 of t_end: a resumed run may stop elsewhere, but a new
+    # t_end would change the loading half-way through.
+    stretch = [sys.executable, "-m", "dolfinx_invertible", "run", "stretch-bar", "--quiet"]
+    folder = tmp_path / "bar"
+    arguments = ["--resolution", "1", "--checkpoint-every", "1"]
+    first = subprocess.run([*stretch, *arguments, "--steps", "2", "--out", str(folder)],
+                           capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert first.returncode == 0, first.stderr
+    assert latest_checkpoint(folder)[1]["dynamics"]["time"] == pytest.approx(0.02)
+    later = subprocess.run([*stretch, "--resume", str(folder), "--t-end", "2.4"],
+                           capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert later.returncode == 2 and "timed by the end time" in later.stderr
+    assert latest_checkpoint(folder)[1]["dynamics"]["time"] == pytest.approx(0.02)
+    # Resumed as it was, it goes on to its end (where --steps stopped it does not carry over).
+    rest = subprocess.run([*stretch, "--resume", str(folder)], capture_output=True, text=True,
+                          timeout=600)  # fmt: skip
+    assert rest.returncode == 0, rest.stderr
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["time"] == pytest.approx(summary["parameters"]["t_end"]) and summary["completed"]

@@ -90,6 +90,28 @@ def test_stretch_bar_keeps_a_square_section_with_the_extension():
     assert abs(summary["cross_section_ratio"] - 1.0) < 0.1
 
 
+def test_a_run_stopped_early_follows_the_whole_run_schedule():
+    # The ends move apart over 5/6 of t_end; a run stopped at t_stop is the whole run's start.
+    from dolfinx_invertible.scenes.loading import smooth_ramp
+    from dolfinx_invertible.scenes.stretch_bar import STRETCH
+
+    scene = get_scene("stretch-bar")
+    values = dict(scene.defaults) | {"resolution": 1, "t_stop": 0.02}
+    reached = []
+
+    def record(run):
+        reached.append((run.time, run.u.x.array[0::3].max()))
+
+    parameters = Parameters(**values)
+    summary = run_scene(scene, parameters, output=None, on_step=record)
+    assert summary["completed"] and reached[-1][0] == pytest.approx(0.02)
+    pull_time = 5.0 / 6.0 * parameters.t_end
+    shift = 0.5 * (STRETCH - 1.0) * parameters.size * smooth_ramp(0.02, pull_time)
+    local = reached[-1][1]
+    assert MPI.COMM_WORLD.allreduce(local, op=MPI.MAX) == pytest.approx(shift, rel=1e-9)
+    assert Parameters(t_end=0.5, t_stop=0.8).stop_time == 0.5
+
+
 def test_tet_stretch_c2_moves_smoothly():
     summary = run("tet-stretch", t_end=1.0, dt=0.02)
     assert summary["completed"] and summary["max_inverted"] == 0
