@@ -16,10 +16,12 @@ there, so imposing it (as a Newton step does) leaves the state, and hence the ca
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
 import resource
+import signal
 import statistics
 import subprocess
 import sys
@@ -325,18 +327,55 @@ def bench_command(subcommand: str, arguments: Sequence[str], ranks: int | None) 
 
 
 def run_child(command: Sequence[str], environment: dict, timeout: float) -> float:
-    """Run a benchmark child to completion; returns its wall time, raises with its output."""
+    """Run a benchmark child to completion; returns its wall time, raises with its output.
+
+    The child runs in a process group of its own, and a child that outlives ``timeout`` loses
+    the whole group: killing ``mpirun`` alone leaves its ranks running, which would then share
+    the machine with every later row. Raises :class:`ChildTimeoutError` then.
+    """
     start = time.perf_counter()
-    completed = subprocess.run(
-        list(command), env=environment, capture_output=True, text=True, timeout=timeout
+    process = subprocess.Popen(
+        list(command),
+        env=environment,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
     )
+    try:
+        stdout, stderr = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _end_group(process)
+        stdout, stderr = process.communicate()
+        raise ChildTimeoutError(
+            f"{' '.join(command)} did not finish within {timeout:g} s:\n"
+            f"{stdout[-3000:]}\n{stderr[-3000:]}"
+        ) from None
+    except BaseException:
+        _end_group(process)
+        raise
     elapsed = time.perf_counter() - start
-    if completed.returncode != 0:
+    if process.returncode != 0:
         raise RuntimeError(
-            f"{' '.join(command)} exited with {completed.returncode}:\n"
-            f"{completed.stdout[-3000:]}\n{completed.stderr[-3000:]}"
+            f"{' '.join(command)} exited with {process.returncode}:\n"
+            f"{stdout[-3000:]}\n{stderr[-3000:]}"
         )
     return elapsed
+
+
+class ChildTimeoutError(RuntimeError):
+    """A benchmark child did not finish within its time limit (its processes are ended)."""
+
+
+def _end_group(process: subprocess.Popen, grace: float = 10.0) -> None:
+    """End the process group of ``process``: SIGTERM, and SIGKILL to what is left after it."""
+    for sent in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(process.pid, sent)
+        except ProcessLookupError:  # nothing left in the group
+            return
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(timeout=grace)
 
 
 def emit(report: dict, table: str, json_path: str | None) -> None:

@@ -11,6 +11,10 @@ run after N time steps (at t = N dt; the scene's loading keeps its schedule over
 are the first N steps of the whole scene, and a relaxation ends "not at rest" unless it got
 there), for sizes whose full run takes too long; the table says which rows were cut short.
 ``--single SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs).
+``--timeout SECONDS`` ends a run that takes longer (all of its processes) and its row says how
+far it got: the worker records its progress after every attempt of a step, and the row of a
+run that timed out (or broke) carries the time reached, the steps, attempts and iterations up
+to then, and why the last failed attempt failed.
 
 Targets (docs/performance.md, "Scale"): the outcome at every resolution equals resolution 8's
 on both paths; Newton iterations per step at resolution 48 within 1.5× of resolution 8's;
@@ -35,9 +39,19 @@ PATHS = ("direct", "iterative")
 
 
 def measure(
-    scene_name: str, resolution: int, path: str, steps: int | None, pc: str, elastic: str
+    scene_name: str,
+    resolution: int,
+    path: str,
+    steps: int | None,
+    pc: str,
+    elastic: str,
+    progress: str | None = None,
 ) -> dict:
-    """Run one scene on ``MPI.COMM_WORLD`` (collective); a JSON-ready row."""
+    """Run one scene on ``MPI.COMM_WORLD`` (collective); a JSON-ready row.
+
+    With ``progress``, rank 0 writes there after every attempt and step how far the run has got
+    (the row of a run that is stopped before it ends, :func:`_unfinished_row`).
+    """
     from mpi4py import MPI
 
     from dolfinx_invertible.scenes import Parameters, RunObserver, get_scene, run_scene
@@ -62,14 +76,51 @@ def measure(
         def __init__(self):
             self.started = 0.0
             self.cells = 0
+            self.unknowns = 0
             self.attempts = 0
+            self.newton_all_attempts = 0
+            self.last_failure: str | None = None
 
         def start(self, run) -> None:
             self.started = time.perf_counter()
             self.cells = run.mesh.topology.index_map(run.mesh.topology.dim).size_global
+            space = run.u.function_space
+            self.unknowns = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
+            self._write_progress(run)
 
         def attempt(self, run, attempt) -> None:
             self.attempts += 1
+            self.newton_all_attempts += attempt.result.newton_iterations
+            result = attempt.result
+            if not attempt.accepted:
+                self.last_failure = (
+                    f"dt = {attempt.end - attempt.start:.3g}: {result.stage} failed "
+                    f"({result.reason_name}) after {result.newton_iterations} Newton iterations"
+                )
+            self._write_progress(run)  # a step may fail many attempts before it completes
+
+        def step(self, run) -> None:
+            self._write_progress(run)
+
+        def _write_progress(self, run) -> None:
+            if progress is None or comm.rank != 0:
+                return
+            record = {
+                "cells": self.cells,
+                "unknowns": self.unknowns,
+                "steps": run.steps,
+                "time": run.time,
+                "stop_time": parameters.stop_time,
+                "attempts": self.attempts,
+                "newton": run.newton_total,
+                "newton_all_attempts": self.newton_all_attempts,
+                "krylov": run.linear_total,
+                "stepping_seconds": time.perf_counter() - self.started,
+                "last_failure": self.last_failure,
+            }
+            with open(progress + ".partial", "w", encoding="utf-8") as file:
+                json.dump(record, file)
+            os.replace(progress + ".partial", progress)
 
     timer = Timer()
     summary = run_scene(scene, parameters, output=None, comm=comm, observers=[timer])
@@ -137,21 +188,64 @@ def _child(directory, single, steps, pc, elastic, timeout) -> dict:
     if steps is not None:
         arguments += ["--steps", str(steps)]
     command = common.bench_command("scenes", arguments, int(count))
+    row = {
+        "scene": scene,
+        "resolution": int(resolution),
+        "ranks": int(count),
+        "path": path,
+        "pc": pc,
+        "elastic": elastic,
+        "cut_short": steps is not None,
+    }
+    started = time.perf_counter()
     try:
         wall = common.run_child(command, common.child_environment(), timeout)
     except Exception as error:  # a run that breaks is a row of the table, not its end
-        return {
-            "scene": scene,
-            "resolution": int(resolution),
-            "ranks": int(count),
-            "path": path,
-            "elastic": elastic,
-            "outcome": "error",
-            "reason": str(error)[-500:],
-        }
+        outcome = "timed out" if isinstance(error, common.ChildTimeoutError) else "error"
+        row["process_wall_seconds"] = time.perf_counter() - started
+        return _unfinished_row(row, outcome, str(error)[-500:], _progress_path(output))
     with open(output, encoding="utf-8") as file:
         row = json.load(file)
     row["process_wall_seconds"] = wall
+    return row
+
+
+def _progress_path(output: str) -> str:
+    return output + ".progress"
+
+
+def _unfinished_row(row: dict, outcome: str, reason: str, progress: str) -> dict:
+    """The row of a run that did not finish: how far it got, from its progress file."""
+    row = {**row, "outcome": outcome, "reason": reason}
+    try:
+        with open(progress, encoding="utf-8") as file:
+            reached = json.load(file)
+    except (OSError, ValueError):  # stopped before its first record
+        return row
+    steps = max(reached["steps"], 1)
+    newton = reached["newton"]
+    seconds = reached["stepping_seconds"]
+    row.update(
+        cells=reached["cells"],
+        unknowns=reached["unknowns"],
+        steps=reached["steps"],
+        reached_time=reached["time"],
+        stop_time=reached["stop_time"],
+        attempts=reached["attempts"],
+        newton=newton,
+        newton_all_attempts=reached["newton_all_attempts"],
+        krylov=reached["krylov"],
+        stepping_seconds=seconds,
+        last_failure=reached["last_failure"],
+    )
+    if reached["steps"] > 0:
+        row.update(
+            newton_per_step=newton / steps,
+            krylov_per_newton=reached["krylov"] / max(newton, 1),
+            seconds_per_step=seconds / steps,
+            seconds_per_newton=seconds / max(newton, 1),
+            seconds_per_step_per_1e5=seconds / steps / (reached["unknowns"] / 1e5),
+        )
     return row
 
 
@@ -183,7 +277,15 @@ def _row_text(row: dict) -> str:
     text = " ".join(parts)
     if row.get("cut_short"):
         text += "  (cut short)"
-    if row.get("outcome") == "error":
+    if "reached_time" in row:
+        text += (
+            f"  ({row['outcome']} after {row['process_wall_seconds']:.0f} s at t = "
+            f"{row['reached_time']:.4g} of {row['stop_time']:.4g}: {row['steps']} steps, "
+            f"{row['attempts']} attempts, {row['newton_all_attempts']} Newton iterations)"
+        )
+        if row["last_failure"]:
+            text += f"  (last failed attempt: {row['last_failure']})"
+    elif row.get("outcome") in ("error", "timed out"):
         lines = [line for line in str(row.get("reason", "")).splitlines() if line.strip()]
         text += f"  ({lines[-1].strip() if lines else 'no output'})"
     return text
@@ -233,7 +335,15 @@ def command(arguments: argparse.Namespace) -> int:
 
         scene, resolution, _, path = arguments.single.split(":")
         (elastic,) = arguments.elastic
-        row = measure(scene, int(resolution), path, arguments.steps, arguments.pc, elastic)
+        row = measure(
+            scene,
+            int(resolution),
+            path,
+            arguments.steps,
+            arguments.pc,
+            elastic,
+            progress=_progress_path(arguments.json),
+        )
         if MPI.COMM_WORLD.rank == 0:
             with open(arguments.json, "w", encoding="utf-8") as file:
                 json.dump(row, file)

@@ -8,6 +8,7 @@ themselves) are serial only.
 from __future__ import annotations
 
 import json
+import pathlib
 
 import pytest
 
@@ -19,6 +20,7 @@ from benchmarks import points as bench_points
 from benchmarks import scaling as bench_scaling
 from benchmarks import scenes as bench_scenes
 from benchmarks import solve as bench_solve
+from dolfinx_invertible.scenes import get_scene
 
 OPERATIONS = ("residual", "tangent", "newton_step")
 
@@ -120,6 +122,38 @@ def test_scene_rows_pair_the_kernels_with_dolfinx_ufl_route():
     assert kernels["outcome"] == ufl["outcome"]
     assert kernels["newton"] == ufl["newton"] and kernels["unknowns"] == ufl["unknowns"]
     assert "s/Newton" in bench_scenes.table(report)
+
+
+def test_a_stopped_scene_row_says_how_far_the_run_got(tmp_path):
+    # The worker's progress file after its last step carries the counts of the finished row, so
+    # the row of a run stopped there (timed out) reports the same steps, time and iterations.
+    progress = str(tmp_path / "row.json.progress")
+    finished = bench_scenes.measure(
+        "twisting-column", 1, "iterative", 2, "gamg", "kernels", progress=progress
+    )
+    started = {"scene": "twisting-column", "process_wall_seconds": 12.0}
+    stopped = bench_scenes._unfinished_row(started, "timed out", "", progress)
+    assert stopped["outcome"] == "timed out" and finished["steps"] == stopped["steps"] == 2
+    assert stopped["attempts"] == 2 and stopped["last_failure"] is None  # no step was cut
+    for key in ("cells", "unknowns", "newton", "krylov", "newton_per_step", "krylov_per_newton"):
+        assert stopped[key] == finished[key], key
+    dt = get_scene("twisting-column").defaults["dt"]
+    assert stopped["reached_time"] == pytest.approx(2 * dt) == stopped["stop_time"]
+    text = bench_scenes._row_text(stopped)
+    assert f"timed out after 12 s at t = {2 * dt:.4g} of {2 * dt:.4g}: 2 steps" in text
+    nothing = bench_scenes._unfinished_row({}, "error", "why", str(tmp_path / "absent"))
+    assert nothing == {"outcome": "error", "reason": "why"}
+
+
+def test_a_child_past_its_time_limit_loses_every_process_it_started(tmp_path):
+    # mpirun's ranks are its children: ending mpirun alone would leave them running.
+    marker = tmp_path / "grandchild.pid"
+    command = ["sh", "-c", f"sleep 120 & echo $! > {marker}; wait"]
+    with pytest.raises(bench_common.ChildTimeoutError, match="did not finish within 2 s"):
+        bench_common.run_child(command, {}, 2.0)
+    status = pathlib.Path(f"/proc/{int(marker.read_text())}/status")
+    # Gone, or a zombie waiting for init to reap it: not running either way.
+    assert not status.exists() or "\nState:\tZ" in status.read_text()
 
 
 @pytest.mark.mpi
