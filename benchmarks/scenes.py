@@ -90,8 +90,8 @@ def measure(
 
         def attempt(self, run, attempt) -> None:
             self.attempts += 1
-            self.newton_all_attempts += attempt.result.newton_iterations
             result = attempt.result
+            self.newton_all_attempts += result.newton_iterations
             if not attempt.accepted:
                 self.last_failure = (
                     f"dt = {attempt.end - attempt.start:.3g}: {result.stage} failed "
@@ -146,12 +146,10 @@ def measure(
         "escalations": summary["stepping"].get("escalations"),
         "newton": newton,
         "krylov": summary["linear_iterations"],
-        "newton_per_step": newton / steps_taken,
-        "krylov_per_newton": summary["linear_iterations"] / max(newton, 1),
         "stepping_seconds": stepping_seconds,
-        "seconds_per_step": stepping_seconds / steps_taken,
-        "seconds_per_newton": stepping_seconds / max(newton, 1),
-        "seconds_per_step_per_1e5": stepping_seconds / steps_taken / (summary["dofs"] / 1e5),
+        **_rates(
+            steps_taken, newton, summary["linear_iterations"], stepping_seconds, summary["dofs"]
+        ),
         "peak_rss_mib": peak / 2**20,
         "reason": summary.get("reason"),
     }
@@ -239,14 +237,19 @@ def _unfinished_row(row: dict, outcome: str, reason: str, progress: str) -> dict
         last_failure=reached["last_failure"],
     )
     if reached["steps"] > 0:
-        row.update(
-            newton_per_step=newton / steps,
-            krylov_per_newton=reached["krylov"] / max(newton, 1),
-            seconds_per_step=seconds / steps,
-            seconds_per_newton=seconds / max(newton, 1),
-            seconds_per_step_per_1e5=seconds / steps / (reached["unknowns"] / 1e5),
-        )
+        row.update(_rates(steps, newton, reached["krylov"], seconds, reached["unknowns"]))
     return row
+
+
+def _rates(steps: int, newton: int, krylov: int, seconds: float, unknowns: int) -> dict:
+    """The per-step and per-iteration figures of a row (``steps`` at least 1)."""
+    return {
+        "newton_per_step": newton / steps,
+        "krylov_per_newton": krylov / max(newton, 1),
+        "seconds_per_step": seconds / steps,
+        "seconds_per_newton": seconds / max(newton, 1),
+        "seconds_per_step_per_1e5": seconds / steps / (unknowns / 1e5),
+    }
 
 
 #: (key, heading, width, format of a value) of the table's columns.
