@@ -1,20 +1,21 @@
 """Scenes as their meshes grow: outcome, Newton and Krylov counts, cost and memory per step.
 
-``python -m dolfinx_invertible bench scenes [--scenes collapse scatter compress-block
-stretch-bar] [--resolutions 8 16 24 32 48] [--ranks 1 2] [--paths direct iterative]
-[--steps N] [--json PATH]`` runs every scene at every resolution on every rank count and
-solver path (``--linear-solver``), each run a child process under ``mpirun -n`` with the scene's
-defaults otherwise, and writes one row per run: cells, unknowns, solver path, outcome, steps,
-Newton iterations per step, Krylov iterations per Newton iteration, seconds per step, seconds per
-step per 10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each
-run after N time steps (at t = N dt; the scene's loading keeps its schedule over t_end, so these
-are the first N steps of the whole scene, and a relaxation ends "not at rest" unless it got
-there), for sizes whose full run takes too long; the table says which rows were cut short.
-``--single SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs).
-``--timeout SECONDS`` ends a run that takes longer (all of its processes) and its row says how
-far it got: the worker records its progress after every attempt of a step, and the row of a
-run that timed out (or broke) carries the time reached, the steps, attempts and iterations up
-to then, and why the last failed attempt failed.
+``python -m dolfinx_invertible bench scenes [--scenes collapse scatter compress-block stretch-bar]
+[--resolutions 8 16 24 32 48] [--ranks 1 2] [--paths direct iterative] [--globalization line-search
+trust-region] [--steps N] [--json PATH]`` runs every scene at every resolution on every rank count,
+solver path (``--linear-solver``) and globalization (``--globalization``; the trust region on the
+iterative path only), each run a child process under ``mpirun -n`` with the scene's defaults
+otherwise, and writes one row per run: cells, unknowns, solver path, outcome, steps, Newton
+iterations per step, Krylov iterations per Newton iteration, seconds per step, seconds per step per
+10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each run after N
+time steps (at t = N dt; the scene's loading keeps its schedule over t_end, so these are the first N
+steps of the whole scene, and a relaxation ends "not at rest" unless it got there), for sizes whose
+full run takes too long; the table says which rows were cut short. ``--single
+SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs). ``--timeout
+SECONDS`` ends a run that takes longer (all of its processes) and its row says how far it got: the
+worker records its progress after every attempt of a step, and the row of a run that timed out (or
+broke) carries the time reached, the steps, attempts and iterations up to then, and why the last
+failed attempt failed.
 
 Targets (docs/performance.md, "Scale"): the outcome at every resolution equals resolution 8's
 on both paths; Newton iterations per step at resolution 48 within 1.5× of resolution 8's;
@@ -46,6 +47,7 @@ def measure(
     pc: str,
     elastic: str,
     progress: str | None = None,
+    globalization: str = "auto",
 ) -> dict:
     """Run one scene on ``MPI.COMM_WORLD`` (collective); a JSON-ready row.
 
@@ -64,6 +66,7 @@ def measure(
         "linear_solver": path,
         "pc": pc,
         "elastic": elastic,
+        "globalization": globalization,
     }
     if steps is not None:
         if scene.dynamic:
@@ -80,9 +83,11 @@ def measure(
             self.attempts = 0
             self.newton_all_attempts = 0
             self.last_failure: str | None = None
+            self.globalization = globalization
 
         def start(self, run) -> None:
             self.started = time.perf_counter()
+            self.globalization = run.minimizer.globalization
             self.cells = run.mesh.topology.index_map(run.mesh.topology.dim).size_global
             space = run.u.function_space
             self.unknowns = space.dofmap.index_map.size_global * space.dofmap.index_map_bs
@@ -135,6 +140,7 @@ def measure(
         "path": path,
         "pc": pc,
         "elastic": summary["parameters"]["elastic"],  # the route the run took
+        "globalization": timer.globalization,  # what "auto" chose
         "cells": timer.cells,
         "unknowns": summary["dofs"],
         "outcome": summary["outcome"],
@@ -164,25 +170,35 @@ def run(
     pc: str,
     timeout: float,
     elastic=("kernels",),
+    globalizations=("auto",),
 ) -> dict:
-    """Run every combination in a child process each; return the report."""
+    """Run every combination in a child process each; return the report.
+
+    A trust region runs on the iterative path only: its combinations with the direct path are
+    left out.
+    """
     report: dict = {"benchmark": "scenes", "machine": common.machine(), "rows": []}
     with tempfile.TemporaryDirectory(prefix="bench_scenes_") as directory:
-        for scene, resolution, count, path, route in itertools.product(
-            scenes, resolutions, ranks, paths, elastic
+        for scene, resolution, count, path, route, globalization in itertools.product(
+            scenes, resolutions, ranks, paths, elastic, globalizations
         ):
+            if globalization == "trust-region" and path == "direct":
+                continue
             single = f"{scene}:{resolution}:{count}:{path}"
-            report["rows"].append(_child(directory, single, steps, pc, route, timeout))
+            report["rows"].append(
+                _child(directory, single, steps, pc, route, timeout, globalization)
+            )
             print(_row_text(report["rows"][-1]), flush=True)
     common.record_load_after(report)
     return report
 
 
-def _child(directory, single, steps, pc, elastic, timeout) -> dict:
+def _child(directory, single, steps, pc, elastic, timeout, globalization) -> dict:
     scene, resolution, count, path = single.split(":")
-    output = os.path.join(directory, f"{single.replace(':', '-')}-{elastic}.json")
+    name = f"{single.replace(':', '-')}-{elastic}-{globalization}.json"
+    output = os.path.join(directory, name)
     arguments = ["--worker", "--single", single, "--pc", pc, "--elastic", elastic]
-    arguments += ["--json", output]
+    arguments += ["--globalization", globalization, "--json", output]
     if steps is not None:
         arguments += ["--steps", str(steps)]
     command = common.bench_command("scenes", arguments, int(count))
@@ -193,6 +209,7 @@ def _child(directory, single, steps, pc, elastic, timeout) -> dict:
         "path": path,
         "pc": pc,
         "elastic": elastic,
+        "globalization": globalization,
         "cut_short": steps is not None,
     }
     started = time.perf_counter()
@@ -259,6 +276,7 @@ _COLUMNS = (
     ("ranks", "np", 3, ">"),
     ("path", "path", 10, ">"),
     ("elastic", "elastic", 7, ">"),
+    ("globalization", "globalization", 13, ">"),
     ("cells", "cells", 9, ">"),
     ("unknowns", "unknowns", 9, ">"),
     ("outcome", "outcome", 17, ">"),
@@ -322,6 +340,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(plain Neo-Hookean; only where nothing inverts), or both for a paired comparison "
         "(default kernels)",
     )
+    parser.add_argument(
+        "--globalization",
+        nargs="+",
+        default=["auto"],
+        choices=("auto", "line-search", "trust-region"),
+        help="Newton's globalization: the trust region on the iterative path and the line search "
+        "on the direct one (auto), the energy line search, the trust region (iterative path "
+        "only), or two of them for a paired comparison (default auto)",
+    )
     parser.add_argument("--steps", type=int, help="stop every run after this many steps")
     parser.add_argument(
         "--single", metavar="SCENE:RESOLUTION:RANKS:PATH", help="run this one row only"
@@ -338,6 +365,7 @@ def command(arguments: argparse.Namespace) -> int:
 
         scene, resolution, _, path = arguments.single.split(":")
         (elastic,) = arguments.elastic
+        (globalization,) = arguments.globalization
         row = measure(
             scene,
             int(resolution),
@@ -346,6 +374,7 @@ def command(arguments: argparse.Namespace) -> int:
             arguments.pc,
             elastic,
             progress=_progress_path(arguments.json),
+            globalization=globalization,
         )
         if MPI.COMM_WORLD.rank == 0:
             with open(arguments.json, "w", encoding="utf-8") as file:
@@ -356,6 +385,13 @@ def command(arguments: argparse.Namespace) -> int:
         selection = ([scene], [int(resolution)], [int(ranks)], [path])
     else:
         selection = (arguments.scenes, arguments.resolutions, arguments.ranks, arguments.paths)
-    report = run(*selection, arguments.steps, arguments.pc, arguments.timeout, arguments.elastic)
+    report = run(
+        *selection,
+        arguments.steps,
+        arguments.pc,
+        arguments.timeout,
+        arguments.elastic,
+        arguments.globalization,
+    )
     common.emit(report, table(report), arguments.json)
     return 0

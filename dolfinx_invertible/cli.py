@@ -99,6 +99,7 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     """Add the generic options to a scene's parser, with that scene's defaults in the help."""
     from dolfinx_invertible.scenes.parameters import (
         EXTENSION_NAMES,
+        GLOBALIZATIONS,
         LINEAR_SOLVERS,
         MODEL_NAMES,
         OUTPUT_FORMATS,
@@ -195,6 +196,11 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     discretisation.add_argument("--pc", choices=list(PRECONDITIONERS), help="AMG of the "
                                 "iterative path: PETSc's GAMG or hypre's BoomerAMG (default: "
                                 f"{default('pc')})")  # fmt: skip
+    discretisation.add_argument("--globalization", choices=list(GLOBALIZATIONS), help="how "
+                                "Newton's steps are kept safe: the energy line search, or a "
+                                "trust region around conjugate gradients on the exact tangent "
+                                "that follows negative curvature (needs --linear-solver "
+                                f"iterative) (default: {default('globalization')})")  # fmt: skip
     if scene.takes_friction or scene.several_bodies or scene.takes_self_contact:
         discretisation.add_argument("--friction", type=float, metavar="MU", help="Coulomb's "
                                     "friction coefficient of the contacts, lagged per time step "

@@ -31,13 +31,23 @@ def main() -> None:
     parser.add_argument("--nu", type=float)
     parser.add_argument("--linear-solver", dest="linear_solver", default="auto")
     parser.add_argument("--pc", default="gamg")
+    parser.add_argument("--globalization", default="auto")
     parser.add_argument("--petsc-option", action="append", default=[], dest="petsc_option")
     parser.add_argument("--problem-option", action="append", default=[], dest="problem_option")
     parser.add_argument("--verbose", action="store_true", help="one line per Newton iteration")
     arguments = parser.parse_args()
     scene = get_scene(arguments.scene)
     values = dict(scene.defaults)
-    for name in ("resolution", "t_end", "t_stop", "dt", "nu", "linear_solver", "pc"):
+    for name in (
+        "resolution",
+        "t_end",
+        "t_stop",
+        "dt",
+        "nu",
+        "linear_solver",
+        "pc",
+        "globalization",
+    ):
         if getattr(arguments, name) is not None:
             values[name] = getattr(arguments, name)
     petsc = dict(option.partition("=")[::2] for option in arguments.petsc_option)

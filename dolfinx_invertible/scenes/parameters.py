@@ -43,6 +43,8 @@ EXTENSION_NAMES = {"none": None, "c1": C1, "c2": C2, "ife": IFE}
 #: ``--linear-solver`` choices (the solvers' ``LINEAR_SOLVERS``; kept here so that the command
 #: line's parser does not load PETSc).
 LINEAR_SOLVERS = ("auto", "direct", "iterative")
+#: ``--globalization`` choices (the solvers' ``GLOBALIZATIONS``, kept here for the same reason).
+GLOBALIZATIONS = ("auto", "line-search", "trust-region")
 #: ``--pc`` choices: the preconditioners of the iterative path.
 PRECONDITIONERS = ("gamg", "hypre")
 #: ``--format`` choices: XDMF, ADIOS2 VTX, or both (see :func:`~.runner.run_scene`).
@@ -109,6 +111,10 @@ class Parameters:
         :func:`~dolfinx_invertible.solvers.options.linear_solver_options`).
     pc
         Preconditioner of the iterative path: ``"gamg"`` or ``"hypre"``.
+    globalization
+        ``"auto"`` (the trust region on the iterative path, the line search on the direct one),
+        ``"line-search"`` or ``"trust-region"`` (the iterative path only; see
+        :mod:`~dolfinx_invertible.solvers.trust_region`).
     self_contact
         Keep the body's surface from passing through itself (IPC Toolkit's barrier and
         continuous collision detection, :class:`~dolfinx_invertible.contact.BodyContactTerm`),
@@ -147,6 +153,7 @@ class Parameters:
     elastic: str = "kernels"
     linear_solver: str = "auto"
     pc: str = "gamg"
+    globalization: str = "auto"
     self_contact: bool = False
     count: int = 1
     friction: float = 0.0
@@ -195,6 +202,16 @@ class Parameters:
             raise ValueError(
                 f"--linear-solver must be one of {', '.join(LINEAR_SOLVERS)}, "
                 f"got {self.linear_solver!r}"
+            )
+        if self.globalization not in GLOBALIZATIONS:
+            raise ValueError(
+                f"--globalization must be one of {', '.join(GLOBALIZATIONS)}, "
+                f"got {self.globalization!r}"
+            )
+        if self.globalization == "trust-region" and self.linear_solver == "direct":
+            raise ValueError(
+                "--globalization trust-region runs conjugate gradients: it needs "
+                "--linear-solver iterative (or auto above the direct solve's limit), got direct"
             )
         if not (math.isfinite(self.friction) and self.friction >= 0.0):
             raise ValueError(f"--friction must be a finite number >= 0, got {self.friction!r}")

@@ -286,6 +286,7 @@ def run_scene(
     options.setdefault("elastic", parameters.elastic)
     options.setdefault("linear_solver", parameters.linear_solver)
     options.setdefault("pc", parameters.pc)
+    options.setdefault("globalization", parameters.globalization)
     options.update(problem_options or {})
     terms, limits = scene.terms(u), scene.step_limits(u)
     if body_contact is not None:

@@ -42,6 +42,9 @@ from dolfinx_invertible.solvers.patterns import copy_into, structure
 from dolfinx_invertible.solvers.results import ksp_reason_name
 from dolfinx_invertible.solvers.truncated_cg import TruncatedCG, truncated_cg
 
+#: The kind of a direction of the exact tangent cut at the trust region's boundary.
+BOUNDED = "bounded"
+
 __all__ = [
     "BLEND_WEIGHTS",
     "BlendedTangent",
@@ -148,6 +151,10 @@ class NewtonDirections:
         Called with each assembled tangent (the tolerances read its diagonal).
     tangent
         What the problem's own tangent is, as monitors name it: ``"exact"`` or ``"projected"``.
+    trust_region
+        The :class:`~dolfinx_invertible.solvers.trust_region.TrustRegion` whose radius bounds
+        the truncated CG's directions, and with which every iteration takes the exact tangent;
+        ``None`` (default): no bound, and the projected tangent outside Newton's local phase.
 
     Attributes
     ----------
@@ -167,6 +174,9 @@ class NewtonDirections:
     preconditioned_by
         What the current iteration's preconditioning matrix is: ``"exact"``, ``"projected"``,
         or ``"exact failed"`` (solved again with the projected one, see :meth:`settle`).
+    direction_tangent
+        The matrix holding the tangent the current direction was solved with (``None`` for a
+        blend, which no matrix holds).
     """
 
     def __init__(
@@ -179,6 +189,7 @@ class NewtonDirections:
         blend_after: int | None,
         assembled: Callable[[PETSc.Mat], None],
         tangent: str = "exact",
+        trust_region=None,
     ) -> None:
         if blend_after is not None and (int(blend_after) != blend_after or blend_after < 0):
             raise ValueError(f"blend_after must be an integer >= 0 or None, got {blend_after!r}")
@@ -190,6 +201,7 @@ class NewtonDirections:
         self.tangent_switch = tangent_switch
         self.blend_after = None if blend_after is None else int(blend_after)
         self.tangent = tangent
+        self.trust_region = trust_region
         self._assembled = assembled
         near_nullspace = rigid_body_near_nullspace(problem.u.function_space)
         self.matrix = problem.create_matrix()
@@ -201,6 +213,7 @@ class NewtonDirections:
             self.preconditioner.setNearNullSpace(near_nullspace)
         self.exact_preconditioner = True
         self.preconditioned_by = "projected"
+        self.direction_tangent: PETSc.Mat | None = self.matrix
         self._projected = ProjectedTangent()
         self._blended = BlendedTangent()
         #: The truncated CG solving for the directions where the iterative path runs it.
@@ -251,7 +264,10 @@ class NewtonDirections:
         self.replacement_linear_iterations = 0
         if self.truncated is not None:
             self.truncated.blend = self._blending()
+            if self.trust_region is not None:
+                self.truncated.radius = self.trust_region.radius
         self._assemble_tangent_into(x, A, projected)
+        self.direction_tangent = A
         self.preconditioned_by = "projected"
         if P is not None and P.handle != A.handle:
             if projected or (self.exact_preconditioner and self.truncated is not None):
@@ -305,8 +321,8 @@ class NewtonDirections:
         return (self.preconditioner, self.preconditioner)
 
     def after_step(self, full_step: bool) -> None:
-        """Choose the next tangent: the exact one after a full step."""
-        self._exact_next = full_step
+        """Choose the next tangent: the exact one after a full step, or in a trust region."""
+        self._exact_next = full_step or self.trust_region is not None
 
     # -- judging and replacing --------------------------------------------------------------
     def judge(self, ksp: PETSc.KSP, y: PETSc.Vec, *, has_energy: bool) -> tuple[bool, str]:
@@ -325,8 +341,12 @@ class NewtonDirections:
                 # definite blend instead.
                 self.projected_now = True
                 self.kind = truncated.outcome
+                self.direction_tangent = self.preconditioner
                 if truncated.outcome == BlendedTangent.kind:
                     self.blended_iterations += 1
+                    self.direction_tangent = None
+            elif truncated.outcome == BOUNDED:
+                self.kind = BOUNDED
         if reason < 0:
             return False, f"the linear solve failed ({ksp_reason_name(reason)})"
         if not has_energy:
@@ -373,17 +393,19 @@ class NewtonDirections:
         self.projected_iterations += 1
         self.projected_now = True
         self.kind = kind
+        self.direction_tangent = self.matrix
         if kind == BlendedTangent.kind:
             self.blended_iterations += 1
+            self.direction_tangent = None
 
     def escalate(self, ksp: PETSc.KSP) -> bool:
         """Blend from the first projected iteration on, for good; ``False`` if nothing changes.
 
         Nothing changes without a tangent switch, without a definiteness test (the inertia of
-        a factorisation, or the truncated CG's curvature), or when blending from the first
-        iteration already.
+        a factorisation, or the truncated CG's curvature), in a trust region (whose steps use
+        the negative curvature already), or when blending from the first iteration already.
         """
-        if self.tangent_switch is None or self.blend_after == 0:
+        if self.tangent_switch is None or self.blend_after == 0 or self.trust_region is not None:
             return False
         if self.truncated is None and not has_inertia(ksp):
             return False

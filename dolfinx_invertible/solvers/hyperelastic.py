@@ -70,7 +70,8 @@ class HyperelasticProblem:
         solve fails, the projected tangent's at the same iterate. ``result.tangent`` says which
         were used (``"exact+projected"`` for both), ``result.projected_iterations`` how often
         the projected one stepped in.
-    petsc_options, options_prefix, linear_solver, pc, displacement_tolerance, blend_after
+    petsc_options, options_prefix, linear_solver, pc, displacement_tolerance, blend_after,
+    globalization
         See :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`; command-line options
         with the prefix override everything.
     inversion_free
@@ -118,6 +119,7 @@ class HyperelasticProblem:
         terms: Sequence[EnergyTerm] = (),
         elastic: str = "kernels",
         blend_after: int | None = None,
+        globalization: str = "auto",
     ):
         mesh = u.function_space.mesh
         if project not in (True, False, "auto"):
@@ -171,6 +173,7 @@ class HyperelasticProblem:
             tangent="projected" if project is True else "exact",
             displacement_tolerance=displacement_tolerance,
             blend_after=blend_after,
+            globalization=globalization,
         )
 
     def add_monitor(

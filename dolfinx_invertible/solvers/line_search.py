@@ -72,6 +72,10 @@ class EnergyLineSearch:
     fraction
         The fraction of the Newton direction the last decision took (0 where the solve stops;
         after a failed watch, the fraction of the watch's first direction from its origin).
+    decrease
+        Π's decrease over the last step :meth:`backtrack` accepted (0 where it failed).
+    rounding_error
+        The rounding error of Π at the origin of that step.
     """
 
     def __init__(
@@ -104,6 +108,8 @@ class EnergyLineSearch:
         self._watch: _Watch | None = None
         self._watch_spent = False  # after one failed watch, a solve backtracks monotonically
         self._last_energy: tuple[float, np.ndarray] | None = None
+        self.decrease = 0.0
+        self.rounding_error = 0.0
 
     @property
     def watching(self) -> bool:
@@ -139,7 +145,11 @@ class EnergyLineSearch:
         start, terms = self.energy_at(x)
         watch = self.watchdog_steps > 0 and not self._watch_spent and self.full_step
         slope = residual.dot(y)
+        self.rounding_error = self.rounding(terms)
+        self.decrease = 0.0
         step = self._search(x, y, start, terms, slope, residual.norm(), watch=watch)
+        if step is not None:
+            self.decrease = start - self._last_energy[0]
         if step is None:
             self.full_step = False
             self.fraction = 0.0

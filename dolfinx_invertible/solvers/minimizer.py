@@ -10,6 +10,7 @@ direction), :mod:`.line_search` (energy backtracking and the watchdog), :mod:`.c
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 import weakref
 from collections.abc import Callable, Iterator, Sequence
@@ -26,6 +27,7 @@ from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX, Minimizer
 from dolfinx_invertible.solvers.problem import EnergyProblem
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.step_limit import StepLimit
+from dolfinx_invertible.solvers.trust_region import GLOBALIZATIONS, TrustRegion
 
 __all__ = ["EnergyMinimizer"]
 
@@ -116,6 +118,13 @@ class EnergyMinimizer:
         Projected iterations of a solve after which the exact and the projected tangent are
         blended where the exact one is indefinite; ``None`` (default) never blends until
         :meth:`escalate` is called.
+    globalization
+        ``"line-search"``: steps 2–4 above. ``"trust-region"``: every direction is conjugate
+        gradients on the exact tangent bounded by a trust region, following negative curvature
+        to its boundary (:mod:`.trust_region`); the energy line search guards each step,
+        without the watchdog. Needs the iterative path (conjugate gradients), an energy and a
+        ``tangent_switch``. ``"auto"`` (default): the trust region where it applies, else the
+        line search.
 
     Attributes
     ----------
@@ -130,6 +139,11 @@ class EnergyMinimizer:
     tolerances
         The scaled tolerances
         (:class:`~dolfinx_invertible.solvers.convergence.ScaledTolerances`).
+    globalization
+        ``"line-search"`` or ``"trust-region"``: what ``globalization`` chose.
+    trust_region
+        The :class:`~dolfinx_invertible.solvers.trust_region.TrustRegion` of a trust-region
+        solver (its radius), else ``None``.
     """
 
     def __init__(
@@ -148,7 +162,12 @@ class EnergyMinimizer:
         max_backtracks: int = 30,
         watchdog_steps: int = 2,
         blend_after: int | None = None,
+        globalization: str = "auto",
     ) -> None:
+        if globalization not in GLOBALIZATIONS:
+            raise ValueError(
+                f"globalization must be one of {GLOBALIZATIONS}, got {globalization!r}"
+            )
         self.problem = problem
         self.u = problem.u
         self.step_limits = tuple(step_limits)
@@ -198,6 +217,22 @@ class EnergyMinimizer:
         chosen = self.options.configure(self.snes)
         directions.choose_krylov_method(self.snes.getKSP())
         self.line_search = "energy" if chosen == "basic" and problem.has_energy else chosen
+        applies = directions.truncated is not None and self.line_search == "energy"
+        if globalization == "trust-region" and not applies:
+            raise ValueError(
+                "globalization='trust-region' needs the iterative path (conjugate gradients: "
+                f"linear_solver='iterative'; here {self.linear_solver!r} with ksp_type "
+                f"{self.snes.getKSP().getType()!r}), a tangent switch (project='auto') and an "
+                "energy (not a stress-only material such as IFE)"
+            )
+        self.globalization = "line-search"
+        self.trust_region: TrustRegion | None = None
+        if globalization != "line-search" and applies:
+            self.globalization = "trust-region"
+            self.trust_region = directions.trust_region = TrustRegion()
+            # A trust region takes no step its model has not vouched for.
+            self._search.watchdog_steps = 0
+        self._work = problem.create_vector()
 
     # -- public properties and observation ------------------------------------------------
     @property
@@ -316,6 +351,10 @@ class EnergyMinimizer:
                 f"search's floor of {floor:.1e}",
             )
             return
+        # Options may have replaced the truncated CG for a while (options_override).
+        bounded = self.trust_region is not None and directions.truncated is not None
+        if bounded:
+            slope, curvature = self._model_terms(y)
         if largest < 1.0:
             y.scale(largest)
         search.full_step = largest == 1.0
@@ -323,6 +362,29 @@ class EnergyMinimizer:
         if has_energy:
             self._stop(search.backtrack(x, y, self._residual))
             monitors.step_length *= search.fraction
+        if bounded:
+            fraction = monitors.step_length
+            truncated = directions.truncated
+            self.trust_region.update(
+                fraction=fraction,
+                step_norm=truncated.step_norm if math.isfinite(slope) else math.nan,
+                boundary=truncated.boundary,
+                actual=search.decrease,
+                predicted=fraction * slope - 0.5 * fraction**2 * curvature,
+                rounding=search.rounding_error,
+            )
+
+    def _model_terms(self, y: PETSc.Vec) -> tuple[float, float]:
+        """Return the slope rᵀy and the curvature yᵀKy of the tangent ``y`` came from.
+
+        That is the exact tangent but for a solve's first direction, before the trust region
+        has a radius, where the truncated CG may have fallen back to the projected one.
+        """
+        matrix = self.directions.direction_tangent
+        if matrix is None:
+            return math.nan, math.nan
+        matrix.mult(y, self._work)
+        return self._residual.dot(y), y.dot(self._work)
 
     def _converged(self, snes, iteration: int, norms) -> int:
         if iteration > 0 and not self._search.watching:
@@ -406,6 +468,8 @@ class EnergyMinimizer:
         self._test.start_solve()
         self.directions.start_solve()
         self._search.start_solve()
+        if self.trust_region is not None:
+            self.trust_region.start_solve()
         try:
             with self.options.in_effect():
                 _compat.snes_solve(self.snes, self._x)

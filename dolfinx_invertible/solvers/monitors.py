@@ -31,8 +31,9 @@ __all__ = [
 ]
 
 #: Where a Newton direction came from: the problem's own tangent, the SPD-projected tangent
-#: that replaced it, or a positive definite blend of the two.
-DIRECTION_KINDS = ("exact", "projected", "blended")
+#: that replaced it, a positive definite blend of the two, or the exact tangent's direction cut
+#: at a trust region's boundary.
+DIRECTION_KINDS = ("exact", "projected", "blended", "bounded")
 
 
 @dataclasses.dataclass(frozen=True)

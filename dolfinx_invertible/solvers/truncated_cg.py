@@ -12,6 +12,14 @@ Eisenstat–Walker forcing terms and the options work as for any KSP.
 The KSP's own operators are (K₊, K₊) and the exact tangent is handed to the context
 (:attr:`TruncatedCG.operator`): a multigrid preconditioner computes its finest level's residuals
 with the KSP's operator, and on K it would not be positive definite.
+
+With a finite :attr:`TruncatedCG.radius` the solver is Steihaug–Toint's: CG on K from zero
+stops where its iterate would leave the ball of that radius in the preconditioner's norm
+‖x‖_M = (xᵀMx)^½ (M the preconditioner's matrix, AMG's approximation of the tangent: an energy
+norm), or where it meets negative curvature, at the point of the ball's boundary along the
+search direction. The CG iterates grow monotonically in that norm and lower the quadratic model
+monotonically, so the step is always one of descent and uses the negative curvature instead of
+dropping it (:mod:`.trust_region`).
 """
 
 from __future__ import annotations
@@ -58,6 +66,14 @@ class TruncatedCG:
         ``"blended"``, ``"projected"`` or ``"failed"``.
     curvature_iteration
         The CG iteration at which negative curvature was met in the last solve, else ``None``.
+    radius
+        The trust region's radius in the preconditioner's norm; ``math.inf`` (default) solves
+        without one.
+    boundary
+        Whether the last solve stopped on the trust region's boundary.
+    step_norm
+        The preconditioner's norm of the last solve's solution (``nan`` where a blend
+        restarted from a nonzero iterate, whose norm the recurrences do not give).
     """
 
     def __init__(self) -> None:
@@ -67,6 +83,9 @@ class TruncatedCG:
         self.weight = 1.0
         self.outcome = "failed"
         self.curvature_iteration: int | None = None
+        self.radius = math.inf
+        self.boundary = False
+        self.step_norm = math.nan
         self._work: list[PETSc.Vec] | None = None
 
     def setUp(self, ksp: PETSc.KSP) -> None:  # noqa: N802 (petsc4py's name)
@@ -102,6 +121,8 @@ class TruncatedCG:
         bz = b.dot(z)
         self.curvature_iteration = None
         self.weight = 1.0
+        self.boundary = False
+        self.step_norm = math.nan
         if not (math.isfinite(bz) and bz >= 0.0):
             self._finish(ksp, _REASONS.DIVERGED_INDEFINITE_PC, 0, "failed")
             return
@@ -112,7 +133,7 @@ class TruncatedCG:
             reason, iterations, limit = self._cg(
                 ksp, exact, projected, weight, b, x, target, iterations, max_it
             )
-            if reason != _compat.KSP_CONVERGED_NEGATIVE_CURVATURE:
+            if reason != _compat.KSP_CONVERGED_NEGATIVE_CURVATURE or self.boundary:
                 break
             if self.curvature_iteration is None:
                 self.curvature_iteration = iterations
@@ -127,6 +148,8 @@ class TruncatedCG:
         self.weight = weight
         if reason < 0:
             outcome = "failed"
+        elif self.boundary:
+            outcome = "bounded"
         elif weight == 1.0:
             outcome = "exact"
         else:
@@ -144,7 +167,9 @@ class TruncatedCG:
 
         Stops at a search direction p of non-positive curvature unless w = 0 (then K₊ alone,
         which has none: that is a failure); w* = pᵀK₊p / (pᵀK₊p − pᵀKp) is the largest weight
-        that direction allows.
+        that direction allows. From ``x`` = 0 it tracks ‖x‖_M, ‖p‖_M and xᵀMp by Steihaug's
+        recurrences and stops on the boundary of a finite :attr:`radius` (at negative curvature
+        too, where ``restart`` allows it).
         """
         r, z, p, q, k = self._vectors(b)
         pc = ksp.getPC()
@@ -163,12 +188,13 @@ class TruncatedCG:
             result.axpy(1.0 - weight, k)
             return exact_curvature, projected_curvature
 
-        if x.norm(PETSc.NormType.NORM_INFINITY) > 0.0:
+        from_zero = not x.norm(PETSc.NormType.NORM_INFINITY) > 0.0
+        if from_zero:
+            b.copy(r)
+        else:
             apply(x, q)
             b.copy(r)
             r.axpy(-1.0, q)
-        else:
-            b.copy(r)
         pc.apply(r, z)
         rz = r.dot(z)
         iteration = start
@@ -179,13 +205,21 @@ class TruncatedCG:
         ksp.logConvergenceHistory(norm)
         ksp.monitor(iteration, norm)
         if norm <= target:
+            if from_zero:
+                self.step_norm = 0.0
             return _REASONS.CONVERGED_RTOL, iteration, math.nan
         z.copy(p)
+        # ‖x‖²_M, xᵀMp and ‖p‖²_M (Steihaug 1983), valid from x = 0 only.
+        xx, xp, pp = 0.0, 0.0, rz
+        bounded = from_zero and math.isfinite(self.radius)
         while iteration < max_it:
             exact_curvature, projected_curvature = apply(p, q)
             curvature = p.dot(q)
             if not math.isfinite(curvature):
                 return _REASONS.DIVERGED_NANORINF, iteration, math.nan
+            if curvature <= 0.0 and bounded and self.restart:
+                self._to_boundary(x, p, xx, xp, pp)
+                return _compat.KSP_CONVERGED_NEGATIVE_CURVATURE, iteration, math.nan
             if curvature <= 0.0:
                 if weight == 0.0:
                     return _REASONS.DIVERGED_INDEFINITE_MAT, iteration, math.nan
@@ -196,11 +230,17 @@ class TruncatedCG:
                 limit = projected_curvature / drop if drop > 0.0 else 0.0
                 return _compat.KSP_CONVERGED_NEGATIVE_CURVATURE, iteration, limit
             alpha = rz / curvature
+            if bounded and xx + alpha * (2.0 * xp + alpha * pp) >= self.radius**2:
+                self._to_boundary(x, p, xx, xp, pp)
+                return _REASONS.CONVERGED_RTOL, iteration + 1, math.nan
             x.axpy(alpha, p)
             r.axpy(-alpha, q)
             pc.apply(r, z)
             rz_next = r.dot(z)
             iteration += 1
+            xx += alpha * (2.0 * xp + alpha * pp)
+            if from_zero:
+                self.step_norm = math.sqrt(max(xx, 0.0))
             if not (math.isfinite(rz_next) and rz_next >= 0.0):
                 return _REASONS.DIVERGED_INDEFINITE_PC, iteration, math.nan
             norm = math.sqrt(rz_next)
@@ -209,9 +249,20 @@ class TruncatedCG:
             ksp.monitor(iteration, norm)
             if norm <= target:
                 return _REASONS.CONVERGED_RTOL, iteration, math.nan
-            p.aypx(rz_next / rz, z)
+            beta = rz_next / rz
+            xp = beta * (xp + alpha * pp)
+            pp = rz_next + beta * beta * pp
+            p.aypx(beta, z)
             rz = rz_next
         return _REASONS.DIVERGED_MAX_IT, iteration, math.nan
+
+    def _to_boundary(self, x, p, xx: float, xp: float, pp: float) -> None:
+        """Move ``x`` along ``p`` (σ ≥ 0) to ‖x + σp‖_M = :attr:`radius`."""
+        gap = max(self.radius**2 - xx, 0.0)
+        sigma = gap / (xp + math.sqrt(xp * xp + pp * gap)) if gap > 0.0 else 0.0
+        x.axpy(sigma, p)
+        self.boundary = True
+        self.step_norm = self.radius
 
 
 # KSPs whose type is ``python``: PETSc must drop their Python contexts while the interpreter and

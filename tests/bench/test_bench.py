@@ -124,6 +124,20 @@ def test_scene_rows_pair_the_kernels_with_dolfinx_ufl_route():
     assert "s/Newton" in bench_scenes.table(report)
 
 
+def test_scene_rows_pair_the_globalizations_on_the_iterative_path_only():
+    report = bench_scenes.run(
+        ["collapse"], [2], [1], ["direct", "iterative"], 2, "gamg", 600.0, ("kernels",),
+        ("auto", "trust-region"),
+    )  # fmt: skip
+    rows = [(row["path"], row["globalization"]) for row in report["rows"]]
+    # "auto" is the line search on the direct path and the trust region on the iterative one.
+    assert rows == [
+        ("direct", "line-search"), ("iterative", "trust-region"), ("iterative", "trust-region")
+    ]  # fmt: skip
+    assert all(row["steps"] == 2 and row["newton"] > 0 for row in report["rows"])
+    assert "trust-region" in bench_scenes.table(report)
+
+
 def test_a_stopped_scene_row_says_how_far_the_run_got(tmp_path):
     # The worker's progress file after its last step carries the counts of the finished row, so
     # the row of a run stopped there (timed out) reports the same steps, time and iterations.

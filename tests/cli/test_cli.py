@@ -73,6 +73,7 @@ def test_every_command_prints_its_help():
         (["--steps", "0"], "--steps must be an integer >= 1"),
         (["--extension", "ife", "-dolfinx_invertible_snes_linesearch_type", "bt"], "no energy"),
         (["--elastic", "ufl"], "plain Neo-Hookean only"),
+        (["--globalization", "trust-region", "--linear-solver", "direct"], "needs --linear-solver"),
     ],
 )
 def test_bad_values_give_one_clear_line_and_no_output(tmp_path, arguments, message):
@@ -95,6 +96,16 @@ def test_steps_stop_a_dynamic_run_without_changing_its_schedule(tmp_path):
     assert parameters["t_end"] == get_scene("stretch-bar").defaults["t_end"]
     assert parameters["t_stop"] == pytest.approx(2 * parameters["dt"])
     assert summary["steps"] >= 2 and summary["completed"]
+
+
+def test_a_trust_region_run_recovers_and_says_so_in_its_summary(tmp_path):
+    folder = tmp_path / "run"
+    completed = cli("run", "collapse", *SMALL, "--linear-solver", "iterative",
+                    "--globalization", "trust-region", "--out", str(folder))  # fmt: skip
+    assert completed.returncode == 0, completed.stderr
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["parameters"]["globalization"] == "trust-region"
+    assert summary["outcome"] == "recovered"
 
 
 def test_unknown_scene_or_option_is_refused():

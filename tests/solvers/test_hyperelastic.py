@@ -407,3 +407,56 @@ def test_a_step_cap_below_the_line_search_floor_fails_the_step_by_name():
     with pytest.raises(SolverError, match=r"failed .*_Wall allows 1\.0e-30 of the Newton step"):
         dynamics.step()
     assert dynamics.controller.statistics()["cuts"] >= 1
+
+
+def _collapse_with(globalization: str):
+    """A cube pressed through itself to 1 % of its size and sheared, one time step; the state
+    at four points and the kinds of the Newton directions."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
+    u.interpolate(lambda x: -0.99 * (x - 0.5) + 0.1 * np.sin(7.0 * x[[1, 2, 0]]))
+    material = Material(NeoHookean(mu=MU, lam=LAM), C2())
+    dynamics = ImplicitDynamics(
+        u,
+        material,
+        density=1.0,
+        dt=0.02,
+        linear_solver="iterative",
+        globalization=globalization,
+        petsc_options={"snes_rtol": 1e-11},
+    )
+    kinds = []
+    dynamics.problem.add_monitor(
+        on_iteration=lambda iteration: iteration.iteration > 0 and kinds.append(iteration.direction)
+    )
+    dynamics.advance(0.02)
+    points = np.array([[0.5, 0.5, 0.5], [0.1, 0.2, 0.9], [0.8, 0.7, 0.3], [0.95, 0.05, 0.5]])
+    return values_at_points(u, points), kinds, dynamics
+
+
+@pytest.mark.mpi
+def test_trust_region_follows_negative_curvature_to_the_line_search_solution():
+    """Out of the collapse, the trust region's steps use the exact tangent's negative curvature
+    (directions cut at the boundary) and reach the state the line search's projected steps
+    reach: the same minimiser of the step's energy."""
+    searched, searched_kinds, _ = _collapse_with("line-search")
+    bounded, kinds, dynamics = _collapse_with("trust-region")
+    # Only a solve's first direction, before any radius is known, may be the projected one.
+    assert "bounded" in kinds and "projected" not in kinds[1:]
+    assert searched_kinds.count("projected") > 1
+    assert len(kinds) < len(searched_kinds)
+    assert np.allclose(bounded, searched, rtol=1e-6, atol=1e-8)
+    assert dynamics.problem.solver.trust_region.radius < np.inf
+
+
+def test_trust_region_needs_the_iterative_path():
+    mesh, u, bc, traction, end = beam(MPI.COMM_SELF)
+    with pytest.raises(ValueError, match="trust-region.*iterative path"):
+        HyperelasticProblem(
+            u, Material(NeoHookean(mu=MU, lam=LAM), C2()), [bc], linear_solver="direct",
+            globalization="trust-region",
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="globalization must be one of"):
+        HyperelasticProblem(
+            u, Material(NeoHookean(mu=MU, lam=LAM), C2()), [bc], globalization="dogleg"
+        )

@@ -25,6 +25,7 @@ def _solve(
     pc: str,
     *,
     restart: bool = True,
+    radius: float = np.inf,
 ):
     A, P = _matrix(operator), _matrix(preconditioner)
     b = PETSc.Vec().createWithArray(rhs.copy(), comm=PETSc.COMM_SELF)
@@ -34,6 +35,7 @@ def _solve(
     ksp.setOperators(P, P)  # the preconditioner sees only the SPD matrix
     context.operator = A
     context.restart = restart
+    context.radius = radius
     ksp.getPC().setType(pc)
     ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=500)
     ksp.solve(b, x)
@@ -102,3 +104,79 @@ def test_an_indefinite_preconditioner_fails():
     preconditioner = np.diag([1.0, -1.0, 1.0])
     reason, _, _, context = _solve(operator, preconditioner, np.array([0.0, 1.0, 0.0]), "lu")
     assert reason == REASONS.DIVERGED_INDEFINITE_PC and context.outcome == "failed"
+
+
+# -- Steihaug–Toint: CG bounded by a trust region in the preconditioner's norm -----------------
+
+
+def _model(operator: np.ndarray, rhs: np.ndarray, x: np.ndarray) -> float:
+    """Newton's quadratic model of the step x (SNES steps to −x): −bᵀx + ½ xᵀAx."""
+    return float(-rhs @ x + 0.5 * x @ operator @ x)
+
+
+def _cauchy_model(operator: np.ndarray, rhs: np.ndarray, radius: float) -> float:
+    """The model at the Cauchy point: its minimiser along b within ‖x‖₂ ≤ radius."""
+    length = radius / np.linalg.norm(rhs)
+    curvature = rhs @ operator @ rhs
+    if curvature > 0.0:
+        length = min(length, (rhs @ rhs) / curvature)
+    return _model(operator, rhs, length * rhs)
+
+
+def test_a_radius_beyond_the_newton_step_changes_nothing():
+    rng = np.random.default_rng(11)
+    operator = _spd(rng, 30, 0.5)
+    rhs = rng.standard_normal(30)
+    newton = np.linalg.solve(operator, rhs)
+    radius = 1.01 * np.sqrt(newton @ operator @ newton)  # the norm of M = A (preconditioner lu)
+    reason, _, x, context = _solve(operator, operator, rhs, "lu", radius=radius)
+    assert reason == REASONS.CONVERGED_RTOL and context.outcome == "exact"
+    assert not context.boundary
+    np.testing.assert_allclose(x, newton, rtol=1e-10)
+    assert context.step_norm == pytest.approx(np.sqrt(x @ operator @ x), rel=1e-10)
+
+
+def test_a_definite_step_stops_on_the_boundary_in_the_preconditioner_norm():
+    """With M = A the bounded problem's solution is the Newton step scaled to the radius."""
+    rng = np.random.default_rng(12)
+    operator = _spd(rng, 30, 0.5)
+    rhs = rng.standard_normal(30)
+    newton = np.linalg.solve(operator, rhs)
+    radius = 0.3 * np.sqrt(newton @ operator @ newton)
+    reason, _, x, context = _solve(operator, operator, rhs, "lu", radius=radius)
+    assert reason > 0 and context.outcome == "bounded" and context.boundary
+    assert np.sqrt(x @ operator @ x) == pytest.approx(radius, rel=1e-10)
+    np.testing.assert_allclose(x, 0.3 * newton, rtol=1e-9)
+    assert context.step_norm == radius
+
+
+@pytest.mark.parametrize("negative", [0, 1, 3])
+def test_an_indefinite_operator_is_followed_to_the_boundary(negative):
+    """Identity preconditioner: the step ends on the Euclidean ball's boundary, is a descent
+    direction, and lowers the model at least as much as the Cauchy point (Steihaug's bound).
+    With `negative` = 0 the operator is definite and the radius cuts CG short."""
+    rng = np.random.default_rng(20 + negative)
+    basis, _ = np.linalg.qr(rng.standard_normal((25, 25)))
+    eigenvalues = np.linspace(0.5, 10.0, 25)
+    eigenvalues[:negative] = -np.linspace(1.0, 4.0, negative)
+    operator = basis @ np.diag(eigenvalues) @ basis.T
+    rhs = rng.standard_normal(25)
+    radius = 0.05 * np.linalg.norm(rhs)
+    reason, iterations, x, context = _solve(operator, np.eye(25), rhs, "none", radius=radius)
+    assert reason > 0 and context.outcome == "bounded" and context.boundary
+    assert np.linalg.norm(x) == pytest.approx(radius, rel=1e-10)
+    assert rhs @ x > 0.0
+    assert _model(operator, rhs, x) <= _cauchy_model(operator, rhs, radius) + 1e-12
+    assert iterations >= 1 or negative > 0
+
+
+def test_the_step_norm_recurrence_matches_the_preconditioner_norm():
+    """Jacobi preconditioning (M = diag A): the recurrence's ‖x‖_M against xᵀ diag(A) x."""
+    rng = np.random.default_rng(13)
+    operator = _spd(rng, 30, 0.2) + np.diag(np.linspace(1.0, 50.0, 30))
+    rhs = rng.standard_normal(30)
+    for radius in (np.inf, 0.2):
+        _, _, x, context = _solve(operator, operator, rhs, "jacobi", radius=radius)
+        norm = np.sqrt(x @ np.diag(np.diag(operator)) @ x)
+        assert context.step_norm == pytest.approx(norm, rel=1e-9)
+        assert context.boundary == (radius < np.inf)
