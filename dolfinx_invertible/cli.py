@@ -199,8 +199,10 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
     discretisation.add_argument("--globalization", choices=list(GLOBALIZATIONS), help="how "
                                 "Newton's steps are kept safe: the energy line search, or a "
                                 "trust region around conjugate gradients on the exact tangent "
-                                "that follows negative curvature (needs --linear-solver "
-                                f"iterative) (default: {default('globalization')})")  # fmt: skip
+                                "that follows negative curvature (the iterative path only); "
+                                "auto: the trust region on the iterative path, the line "
+                                "search on the direct one (default: "
+                                f"{default('globalization')})")  # fmt: skip
     if scene.takes_friction or scene.several_bodies or scene.takes_self_contact:
         discretisation.add_argument("--friction", type=float, metavar="MU", help="Coulomb's "
                                     "friction coefficient of the contacts, lagged per time step "

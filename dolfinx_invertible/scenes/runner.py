@@ -539,11 +539,17 @@ def _summary(
         if run.body_contact is None
         else {"min_distance": run.min_distance, "intersections": run.intersections}
     )
+    minimizer = run.minimizer
     return {
         "scene": run.scene.name,
         "model": parameters.model,
         "extension": parameters.extension,
         "parameters": parameters.as_dict(),
+        # What the "auto" choices of the parameters became.
+        "solver": {
+            "linear_solver": minimizer.linear_solver,
+            "globalization": minimizer.globalization,
+        },
         "ranks": run.mesh.comm.size,
         "dofs": dofs,
         "steps": run.steps,

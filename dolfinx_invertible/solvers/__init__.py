@@ -53,6 +53,7 @@ from dolfinx_invertible.solvers.stepping import (
     solve_load_steps,
     take_step,
 )
+from dolfinx_invertible.solvers.trust_region import GLOBALIZATIONS, TrustRegion
 
 __all__ = [
     "BDF2",
@@ -60,6 +61,7 @@ __all__ = [
     "DEFAULT_PETSC_OPTIONS",
     "DIRECTION_KINDS",
     "DIRECT_SOLVE_LIMIT",
+    "GLOBALIZATIONS",
     "INTEGRATORS",
     "STAGES",
     "BackwardEuler",
@@ -77,6 +79,7 @@ __all__ = [
     "StepCap",
     "StepController",
     "StepLimit",
+    "TrustRegion",
     "external_forms",
     "ksp_reason_name",
     "rigid_body_near_nullspace",

@@ -40,10 +40,8 @@ from petsc4py import PETSc
 from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
 from dolfinx_invertible.solvers.patterns import copy_into, structure
 from dolfinx_invertible.solvers.results import ksp_reason_name
-from dolfinx_invertible.solvers.truncated_cg import TruncatedCG, truncated_cg
-
-#: The kind of a direction of the exact tangent cut at the trust region's boundary.
-BOUNDED = "bounded"
+from dolfinx_invertible.solvers.truncated_cg import BOUNDED, TruncatedCG, truncated_cg
+from dolfinx_invertible.solvers.trust_region import TrustRegion
 
 __all__ = [
     "BLEND_WEIGHTS",
@@ -189,7 +187,7 @@ class NewtonDirections:
         blend_after: int | None,
         assembled: Callable[[PETSc.Mat], None],
         tangent: str = "exact",
-        trust_region=None,
+        trust_region: TrustRegion | None = None,
     ) -> None:
         if blend_after is not None and (int(blend_after) != blend_after or blend_after < 0):
             raise ValueError(f"blend_after must be an integer >= 0 or None, got {blend_after!r}")

@@ -32,7 +32,14 @@ from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
 
-__all__ = ["BLEND_MARGIN", "MAX_RESTARTS", "SMALLEST_WEIGHT", "TruncatedCG", "truncated_cg"]
+__all__ = [
+    "BLEND_MARGIN",
+    "BOUNDED",
+    "MAX_RESTARTS",
+    "SMALLEST_WEIGHT",
+    "TruncatedCG",
+    "truncated_cg",
+]
 
 _REASONS = PETSc.KSP.ConvergedReason
 #: A blend's weight is this share of the largest one the direction of negative curvature allows.
@@ -42,6 +49,8 @@ BLEND_MARGIN = 1.0 - 1.0 / 512.0
 SMALLEST_WEIGHT = 1.0 / 64.0
 #: Restarts with a lower weight before the projected tangent is taken.
 MAX_RESTARTS = 6
+#: The outcome of a solve that stopped on the trust region's boundary.
+BOUNDED = "bounded"
 
 
 class TruncatedCG:
@@ -63,7 +72,8 @@ class TruncatedCG:
         The weight w of the last solve's direction: 1 exact, 0 projected.
     outcome
         What the last solve returned: ``"exact"`` (CG on the exact tangent converged),
-        ``"blended"``, ``"projected"`` or ``"failed"``.
+        ``"bounded"`` (stopped on the trust region's boundary), ``"blended"``, ``"projected"``
+        or ``"failed"``.
     curvature_iteration
         The CG iteration at which negative curvature was met in the last solve, else ``None``.
     radius
@@ -149,7 +159,7 @@ class TruncatedCG:
         if reason < 0:
             outcome = "failed"
         elif self.boundary:
-            outcome = "bounded"
+            outcome = BOUNDED
         elif weight == 1.0:
             outcome = "exact"
         else:
@@ -232,7 +242,7 @@ class TruncatedCG:
             alpha = rz / curvature
             if bounded and xx + alpha * (2.0 * xp + alpha * pp) >= self.radius**2:
                 self._to_boundary(x, p, xx, xp, pp)
-                return _REASONS.CONVERGED_RTOL, iteration + 1, math.nan
+                return _REASONS.CONVERGED_STEP_LENGTH, iteration + 1, math.nan
             x.axpy(alpha, p)
             r.axpy(-alpha, q)
             pc.apply(r, z)

@@ -1,12 +1,12 @@
 """A trust region around the iterative path's Newton steps (Steihaug–Toint).
 
-With ``globalization="trust-region"`` (and ``"auto"``, the default, wherever the iterative path
-runs conjugate gradients on an energy) every Newton direction comes from
-conjugate gradients on the exact tangent K, bounded by a radius Δ in the AMG preconditioner's
-norm (:class:`~dolfinx_invertible.solvers.truncated_cg.TruncatedCG`): where CG meets negative
-curvature the step follows it to the boundary instead of dropping it, as the projected tangent
-does. The energy line search still guards every step (Armijo on the accepted length), and the
-radius follows how well Newton's quadratic model predicted the energy's decrease:
+With ``globalization="trust-region"`` (and ``"auto"``, the default, wherever the iterative path runs
+conjugate gradients on an energy) every Newton direction comes from conjugate gradients on the exact
+tangent K, bounded by a radius Δ in the AMG preconditioner's norm
+(:class:`~dolfinx_invertible.solvers.truncated_cg.TruncatedCG`): where CG meets negative curvature
+the step follows it to the boundary instead of dropping it, as the projected tangent does. The
+energy line search still guards every step (Armijo on the accepted length), and the radius follows
+how well Newton's quadratic model predicted the energy's decrease:
 
     ρ = (Π(x) − Π(x − s)) / (rᵀs − ½ sᵀKs)
 

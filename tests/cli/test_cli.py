@@ -105,6 +105,7 @@ def test_a_trust_region_run_recovers_and_says_so_in_its_summary(tmp_path):
     assert completed.returncode == 0, completed.stderr
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["parameters"]["globalization"] == "trust-region"
+    assert summary["solver"] == {"linear_solver": "iterative", "globalization": "trust-region"}
     assert summary["outcome"] == "recovered"
 
 

@@ -22,6 +22,7 @@ SUMMARY_KEYS = {
     "scene", "model", "extension", "parameters", "ranks", "dofs", "steps", "completed",
     "converged", "nan_encountered", "final_min_J", "final_inverted", "max_inverted",
     "newton_iterations", "linear_iterations", "wall_time_s", "svd_share", "stepping", "outcome",
+    "solver",
 }  # fmt: skip
 
 

@@ -144,7 +144,8 @@ def test_a_definite_step_stops_on_the_boundary_in_the_preconditioner_norm():
     newton = np.linalg.solve(operator, rhs)
     radius = 0.3 * np.sqrt(newton @ operator @ newton)
     reason, _, x, context = _solve(operator, operator, rhs, "lu", radius=radius)
-    assert reason > 0 and context.outcome == "bounded" and context.boundary
+    assert reason == REASONS.CONVERGED_STEP_LENGTH
+    assert context.outcome == "bounded" and context.boundary
     assert np.sqrt(x @ operator @ x) == pytest.approx(radius, rel=1e-10)
     np.testing.assert_allclose(x, 0.3 * newton, rtol=1e-9)
     assert context.step_norm == radius
