@@ -281,8 +281,9 @@ class EnergyMinimizer:
         """Blend the tangents from the first projected iteration on, for good.
 
         The steppers call it when a step has failed at every cut. Returns ``False`` when there
-        is nothing to escalate to: no tangent switch, no inertia from the linear solver (an
-        iterative one), or blending from the first iteration already.
+        is nothing to escalate to: no tangent switch, no definiteness test (the inertia of a
+        factorisation, or the truncated CG's curvature), a trust region (whose steps use the
+        negative curvature already), or blending from the first iteration already.
         """
         return self.directions.escalate(self.snes.getKSP())
 
