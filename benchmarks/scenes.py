@@ -322,6 +322,8 @@ def table(report: dict) -> str:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``bench scenes``."""
+    from dolfinx_invertible.scenes.parameters import GLOBALIZATIONS
+
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), help="scenes to run")
     parser.add_argument(
         "--resolutions", type=int, nargs="+", default=[8, 16], help="resolutions (default 8 16)"
@@ -344,7 +346,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--globalization",
         nargs="+",
         default=["auto"],
-        choices=("auto", "line-search", "trust-region"),
+        choices=GLOBALIZATIONS,
         help="Newton's globalization: the trust region on the iterative path and the line search "
         "on the direct one (auto), the energy line search, the trust region (iterative path "
         "only), or two of them for a paired comparison (default auto)",
