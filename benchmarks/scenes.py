@@ -2,7 +2,7 @@
 
 ``python -m dolfinx_invertible bench scenes [--scenes collapse scatter compress-block stretch-bar]
 [--resolutions 8 16 24 32 48] [--ranks 1 2] [--paths direct iterative] [--globalization line-search
-trust-region] [--steps N] [--json PATH]`` runs every scene at every resolution on every rank count,
+trust-region] [--steps N] [--max-cuts N] [--json PATH]`` runs every scene at every resolution on every rank count,
 solver path (``--linear-solver``) and globalization (``--globalization``; the trust region on the
 iterative path only), each run a child process under ``mpirun -n`` with the scene's defaults
 otherwise, and writes one row per run: cells, unknowns, solver path, outcome, steps, Newton
@@ -10,7 +10,8 @@ iterations per step, Krylov iterations per Newton iteration, seconds per step, s
 10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each run after N
 time steps (at t = N dt; the scene's loading keeps its schedule over t_end, so these are the first N
 steps of the whole scene, and a relaxation ends "not at rest" unless it got there), for sizes whose
-full run takes too long; the table says which rows were cut short. ``--single
+full run takes too long; the table says which rows were cut short. ``--max-cuts N`` gives every
+run that budget of cuts of a failing step instead of the scene's 6. ``--single
 SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs). ``--timeout
 SECONDS`` ends a run that takes longer (all of its processes) and its row says how far it got: the
 worker records its progress after every attempt of a step, and the row of a run that timed out (or
@@ -48,6 +49,7 @@ def measure(
     elastic: str,
     progress: str | None = None,
     globalization: str = "auto",
+    max_cuts: int | None = None,
 ) -> dict:
     """Run one scene on ``MPI.COMM_WORLD`` (collective); a JSON-ready row.
 
@@ -68,6 +70,8 @@ def measure(
         "elastic": elastic,
         "globalization": globalization,
     }
+    if max_cuts is not None:
+        values["max_cuts"] = max_cuts
     if steps is not None:
         if scene.dynamic:
             values["t_stop"] = steps * values.get("dt", Parameters.dt)
@@ -146,6 +150,7 @@ def measure(
         "outcome": summary["outcome"],
         "completed": summary["completed"],
         "cut_short": steps is not None,
+        "max_cuts": summary["parameters"]["max_cuts"],
         "steps": summary["steps"],
         "attempts": timer.attempts,
         "cuts": summary["stepping"].get("cuts"),
@@ -171,6 +176,7 @@ def run(
     timeout: float,
     elastic=("kernels",),
     globalizations=("auto",),
+    max_cuts: int | None = None,
 ) -> dict:
     """Run every combination in a child process each; return the report.
 
@@ -186,14 +192,14 @@ def run(
                 continue
             single = f"{scene}:{resolution}:{count}:{path}"
             report["rows"].append(
-                _child(directory, single, steps, pc, route, timeout, globalization)
+                _child(directory, single, steps, pc, route, timeout, globalization, max_cuts)
             )
             print(_row_text(report["rows"][-1]), flush=True)
     common.record_load_after(report)
     return report
 
 
-def _child(directory, single, steps, pc, elastic, timeout, globalization) -> dict:
+def _child(directory, single, steps, pc, elastic, timeout, globalization, max_cuts) -> dict:
     scene, resolution, count, path = single.split(":")
     name = f"{single.replace(':', '-')}-{elastic}-{globalization}.json"
     output = os.path.join(directory, name)
@@ -201,6 +207,8 @@ def _child(directory, single, steps, pc, elastic, timeout, globalization) -> dic
     arguments += ["--globalization", globalization, "--json", output]
     if steps is not None:
         arguments += ["--steps", str(steps)]
+    if max_cuts is not None:
+        arguments += ["--max-cuts", str(max_cuts)]
     command = common.bench_command("scenes", arguments, int(count))
     row = {
         "scene": scene,
@@ -211,6 +219,7 @@ def _child(directory, single, steps, pc, elastic, timeout, globalization) -> dic
         "elastic": elastic,
         "globalization": globalization,
         "cut_short": steps is not None,
+        "max_cuts": max_cuts,
     }
     started = time.perf_counter()
     try:
@@ -353,6 +362,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--steps", type=int, help="stop every run after this many steps")
     parser.add_argument(
+        "--max-cuts",
+        type=int,
+        dest="max_cuts",
+        help="consecutive cuts of a failing step before a run stops (default: the scenes' 6)",
+    )
+    parser.add_argument(
         "--single", metavar="SCENE:RESOLUTION:RANKS:PATH", help="run this one row only"
     )
     parser.add_argument("--timeout", type=float, default=6 * 3600.0, help="seconds per run")
@@ -377,6 +392,7 @@ def command(arguments: argparse.Namespace) -> int:
             elastic,
             progress=_progress_path(arguments.json),
             globalization=globalization,
+            max_cuts=arguments.max_cuts,
         )
         if MPI.COMM_WORLD.rank == 0:
             with open(arguments.json, "w", encoding="utf-8") as file:
@@ -394,6 +410,7 @@ def command(arguments: argparse.Namespace) -> int:
         arguments.timeout,
         arguments.elastic,
         arguments.globalization,
+        arguments.max_cuts,
     )
     common.emit(report, table(report), arguments.json)
     return 0

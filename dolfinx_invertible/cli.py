@@ -203,6 +203,10 @@ def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
                                 "auto: the trust region on the iterative path, the line "
                                 "search on the direct one (default: "
                                 f"{default('globalization')})")  # fmt: skip
+    resumable = "; a run stopped so goes on with --resume DIR --max-cuts M" if scene.dynamic else ""
+    discretisation.add_argument("--max-cuts", type=int, metavar="N", dest="max_cuts",
+                                help="consecutive halvings of a failing step before the run "
+                                f"stops{resumable} (default: {default('max_cuts')})")  # fmt: skip
     if scene.takes_friction or scene.several_bodies or scene.takes_self_contact:
         discretisation.add_argument("--friction", type=float, metavar="MU", help="Coulomb's "
                                     "friction coefficient of the contacts, lagged per time step "
@@ -265,11 +269,15 @@ def _parameters(scene, arguments: argparse.Namespace):
     return Parameters(**values)
 
 
+# Scene options a resumed run takes besides its checkpoint's parameters.
+_RESUMED_OPTIONS = ("t_end", "max_cuts")
+
+
 def _resumed_parameters(scene, arguments: argparse.Namespace):
     """Return the parameters of the run in ``--resume DIR``, with a later ``--t-end`` if given.
 
     The resumed run goes on to its end: where the first one stopped early (``--steps``) does
-    not carry over.
+    not carry over. ``--max-cuts`` may change: a run whose cuts ran out continues with more.
     """
     from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
     from dolfinx_invertible.scenes.parameters import Parameters
@@ -277,7 +285,7 @@ def _resumed_parameters(scene, arguments: argparse.Namespace):
     given = [
         name
         for name in Parameters.__dataclass_fields__
-        if name != "t_end" and getattr(arguments, name, None) is not None
+        if name not in _RESUMED_OPTIONS and getattr(arguments, name, None) is not None
     ]
     if given or arguments.out is not None:
         options = [f"--{name.replace('_', '-')}" for name in given]
@@ -290,8 +298,9 @@ def _resumed_parameters(scene, arguments: argparse.Namespace):
     # whole checkpoint has only these).
     values = latest_checkpoint(arguments.resume)[1]["parameters"]
     values["t_stop"] = None
-    if arguments.t_end is not None:
-        values["t_end"] = arguments.t_end
+    for name in _RESUMED_OPTIONS:
+        if getattr(arguments, name, None) is not None:
+            values[name] = getattr(arguments, name)
     return Parameters(**values)
 
 

@@ -153,13 +153,18 @@ def latest_checkpoint(output: Path) -> tuple[list[Path], dict[str, Any]]:
     return max(candidates, key=lambda candidate: candidate[1]["steps_written"])
 
 
+# Parameters a resumed run may give new values: where it stops and how far it may cut a step.
+_MAY_CHANGE = ("t_end", "t_stop", "max_cuts")
+
+
 def check_resumable(
     output: Path, scene_name: str, parameters: Parameters, *, timed_by_end: bool = False
 ) -> dict[str, Any]:
     """Return the state of the checkpoint in ``output``; ``ValueError`` if it cannot continue.
 
     The run must be the same scene with the same parameters, except where it stops: ``t_end``
-    may grow (unless the scene's loading is ``timed_by_end``), and ``t_stop`` may change.
+    may grow (unless the scene's loading is ``timed_by_end``), and ``t_stop`` may change; so may
+    ``max_cuts``, to continue a run whose cuts ran out with a larger budget.
     """
     _, state = latest_checkpoint(output)
     if state.get("version") != _VERSION:
@@ -170,7 +175,7 @@ def check_resumable(
     differing = [
         name
         for name, value in state["parameters"].items()
-        if name not in ("t_end", "t_stop") and given.get(name) != value
+        if name not in _MAY_CHANGE and given.get(name) != value
     ]
     if differing:
         raise ValueError(

@@ -115,6 +115,11 @@ class Parameters:
         ``"auto"`` (the trust region on the iterative path, the line search on the direct one),
         ``"line-search"`` or ``"trust-region"`` (the iterative path only; see
         :mod:`~dolfinx_invertible.solvers.trust_region`).
+    max_cuts
+        Consecutive cuts (halvings) of a failing time or load step before the run stops with
+        the step's failure. Each failed attempt costs up to a Newton solve's iteration cap, so
+        a larger budget is slower to give up; a run whose first step has to resolve motion
+        finer than the mesh's (the scatter on fine meshes, docs/performance.md) needs more.
     self_contact
         Keep the body's surface from passing through itself (IPC Toolkit's barrier and
         continuous collision detection, :class:`~dolfinx_invertible.contact.BodyContactTerm`),
@@ -154,6 +159,7 @@ class Parameters:
     linear_solver: str = "auto"
     pc: str = "gamg"
     globalization: str = "auto"
+    max_cuts: int = 6
     self_contact: bool = False
     count: int = 1
     friction: float = 0.0
@@ -213,6 +219,8 @@ class Parameters:
                 "--globalization trust-region runs conjugate gradients: it needs "
                 "--linear-solver iterative (or auto above the direct solve's limit), got direct"
             )
+        if int(self.max_cuts) != self.max_cuts or self.max_cuts < 0:
+            raise ValueError(f"--max-cuts must be an integer >= 0, got {self.max_cuts!r}")
         if not (math.isfinite(self.friction) and self.friction >= 0.0):
             raise ValueError(f"--friction must be a finite number >= 0, got {self.friction!r}")
         _positive("--friction-velocity", self.friction_velocity)

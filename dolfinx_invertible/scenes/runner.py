@@ -312,6 +312,7 @@ def run_scene(
             velocity = dolfinx.fem.Function(space)
             velocity.interpolate(initial_velocity)
             velocity.x.scatter_forward()
+        options.setdefault("max_cuts", int(parameters.max_cuts))
         run.dynamics = ImplicitDynamics(
             u,
             material,
@@ -331,7 +332,7 @@ def run_scene(
         run.problem = HyperelasticProblem(
             u, material, bcs, external_energy=scene.external_energy(u), **options
         )
-        run.controller = StepController(1.0 / parameters.steps)
+        run.controller = StepController(1.0 / parameters.steps, max_cuts=int(parameters.max_cuts))
     observers = list(observers)
     on_attempt = _watch(run, observers) if observers else None
     if checkpoint_state is not None:
@@ -402,6 +403,10 @@ def run_scene(
                 )
             completed = True
     except SolverError as error:
+        if checkpoints is not None and (run.steps % checkpoints != 0 or run.steps == 0):
+            # The state is the last completed step's (or the initial one) and the step
+            # controller's cuts so far: --resume continues the cuts from there.
+            write_run_checkpoint(run, output, writers[0].steps_written)
         failure = {
             "reason": str(error),
             "failed_stage": error.stage,

@@ -152,16 +152,19 @@ class StepController:
             "escalations": self.escalations,
             "consecutive_cuts": self._consecutive_cuts,
             "budget": self._budget,
+            "max_cuts": self.max_cuts,
         }
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Continue from a :meth:`state` (same nominal step and cut rules)."""
+        """Continue from a :meth:`state` (same nominal step; ``max_cuts`` may have changed)."""
         self.step = float(state["step"])
         self.accepted = [float(size) for size in state["accepted"]]
         self.cuts = int(state["cuts"])
         self.escalations = int(state["escalations"])
         self._consecutive_cuts = int(state["consecutive_cuts"])
-        self._budget = int(state["budget"])
+        # The budget left to the step in progress grows or shrinks with a changed max_cuts.
+        saved_max_cuts = int(state.get("max_cuts", self.max_cuts))
+        self._budget = int(state["budget"]) + self.max_cuts - saved_max_cuts
 
     @property
     def consecutive_cuts(self) -> int:

@@ -288,3 +288,31 @@ def test_a_run_stopped_by_steps_resumes_and_keeps_a_schedule_timed_by_its_end(tm
     assert rest.returncode == 0, rest.stderr
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["time"] == pytest.approx(summary["parameters"]["t_end"]) and summary["completed"]
+
+
+def test_a_run_whose_cuts_ran_out_resumes_with_a_larger_budget(tmp_path):
+    # Three Newton iterations a solve and no cut: the press stops the compress block within
+    # its first quarter; the run keeps its last completed step, and goes on from it with cuts.
+    press = [sys.executable, "-m", "dolfinx_invertible", "run", "compress-block", "--quiet"]
+    folder = tmp_path / "block"
+    options = ["--petsc-option", "snes_max_it=3"]
+    first = subprocess.run([*press, "--resolution", "2", "--max-cuts", "0", *options,
+                            "--out", str(folder)], capture_output=True, text=True,
+                           timeout=600)  # fmt: skip
+    assert first.returncode == 1 and "the next cut would take the step below" in first.stdout
+    stopped = json.loads((folder / "summary.json").read_text())
+    assert stopped["outcome"] == "failed" and stopped["parameters"]["max_cuts"] == 0
+    assert 0.0 < stopped["time"] < stopped["failed_time"] < stopped["parameters"]["t_end"]
+    state = latest_checkpoint(folder)[1]
+    assert state["dynamics"]["time"] == pytest.approx(stopped["time"])
+    assert state["steps_written"] == stopped["steps"] + 1  # with the initial state
+    refused = subprocess.run([*press, "--resume", str(folder), "--max-cuts", "6", "--E", "2e3"],
+                             capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert refused.returncode == 2 and "drop --E" in refused.stderr
+    rest = subprocess.run([*press, "--resume", str(folder), "--max-cuts", "6", *options],
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert rest.returncode == 0, rest.stderr
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["completed"] and summary["parameters"]["max_cuts"] == 6
+    assert summary["time"] == pytest.approx(summary["parameters"]["t_end"])
+    assert summary["stepping"]["cuts"] > stopped["stepping"]["cuts"]

@@ -27,6 +27,7 @@ from dolfinx_invertible.solvers import (
     NewtonIteration,
     SolverError,
     SolveResult,
+    StepController,
     rigid_body_near_nullspace,
     snes_reason_name,
     solve_load_steps,
@@ -449,3 +450,28 @@ def test_distributed_solution_matches_serial_solution():
     assert np.abs(expected).max() > 0.1
     # Every rank compared against its own serial solve; make sure they all saw the same thing.
     assert all(np.array_equal(actual, other) for other in MPI.COMM_WORLD.allgather(actual))
+
+
+def test_a_restored_controller_takes_a_changed_budget_of_cuts():
+    def failed_twice(max_cuts):
+        controller = StepController(0.1, max_cuts=max_cuts)
+        size = controller.size()
+        for _ in range(2):
+            usable = controller.failed(size)
+            size = controller.size()
+        return controller, usable, size
+
+    saved, usable, size = failed_twice(2)
+    assert usable and size == pytest.approx(0.025)
+    state = saved.state()
+    assert not saved.failed(size)  # the third cut is past a budget of two
+    for max_cuts, next_cut_usable in ((2, False), (3, True)):
+        controller = StepController(0.1, max_cuts=max_cuts)
+        controller.restore(state)
+        assert controller.size() == pytest.approx(0.025) and controller.consecutive_cuts == 2
+        assert controller.failed(0.025) is next_cut_usable
+    # A checkpoint written before the budget was saved restores the budget as it was.
+    older = {name: value for name, value in state.items() if name != "max_cuts"}
+    controller = StepController(0.1, max_cuts=3)
+    controller.restore(older)
+    assert not controller.failed(0.025)
