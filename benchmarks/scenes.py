@@ -2,16 +2,16 @@
 
 ``python -m dolfinx_invertible bench scenes [--scenes collapse scatter compress-block stretch-bar]
 [--resolutions 8 16 24 32 48] [--ranks 1 2] [--paths direct iterative] [--globalization line-search
-trust-region] [--steps N] [--max-cuts N] [--json PATH]`` runs every scene at every resolution on every rank count,
-solver path (``--linear-solver``) and globalization (``--globalization``; the trust region on the
-iterative path only), each run a child process under ``mpirun -n`` with the scene's defaults
-otherwise, and writes one row per run: cells, unknowns, solver path, outcome, steps, Newton
-iterations per step, Krylov iterations per Newton iteration, seconds per step, seconds per step per
-10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each run after N
-time steps (at t = N dt; the scene's loading keeps its schedule over t_end, so these are the first N
-steps of the whole scene, and a relaxation ends "not at rest" unless it got there), for sizes whose
-full run takes too long; the table says which rows were cut short. ``--max-cuts N`` gives every
-run that budget of cuts of a failing step instead of the scene's 6. ``--single
+trust-region] [--steps N] [--max-cuts N] [--json PATH]`` runs every scene at every resolution on
+every rank count, solver path (``--linear-solver``) and globalization (``--globalization``; the
+trust region on the iterative path only), each run a child process under ``mpirun -n`` with the
+scene's defaults otherwise, and writes one row per run: cells, unknowns, solver path, outcome,
+steps, Newton iterations per step, Krylov iterations per Newton iteration, seconds per step, seconds
+per step per 10⁵ unknowns and the peak resident memory of the largest rank. ``--steps N`` stops each
+run after N time steps (at t = N dt; the scene's loading keeps its schedule over t_end, so these are
+the first N steps of the whole scene, and a relaxation ends "not at rest" unless it got there), for
+sizes whose full run takes too long; the table says which rows were cut short. ``--max-cuts N``
+gives every run that budget of cuts of a failing step instead of the scene's 6. ``--single
 SCENE:RESOLUTION:RANKS:PATH`` runs one row (the 10⁶-unknown collapse of the docs). ``--timeout
 SECONDS`` ends a run that takes longer (all of its processes) and its row says how far it got: the
 worker records its progress after every attempt of a step, and the row of a run that timed out (or

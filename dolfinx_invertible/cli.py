@@ -445,6 +445,13 @@ def _print_summary(summary: dict, output: Path) -> None:
     print(f"{summary['scene']}: {shown}")
     if summary.get("reason"):
         print(f"{summary['scene']}: {summary['reason']}")
+    cut_out = summary.get("failed_stage") not in (None, "NaN")
+    if cut_out and (output / "checkpoint.npz").exists():
+        more = summary["parameters"]["max_cuts"] + 4
+        print(
+            f"{summary['scene']}: to go on from t = {summary['time']:.6g} s with smaller steps: "
+            f"dolfinx-invertible run {summary['scene']} --resume {output} --max-cuts {more}"
+        )
     print(f"wrote {output}/ ({summary['scene']}.xdmf, {summary['scene']}.jsonl, summary.json)")
 
 

@@ -300,6 +300,7 @@ def test_a_run_whose_cuts_ran_out_resumes_with_a_larger_budget(tmp_path):
                             "--out", str(folder)], capture_output=True, text=True,
                            timeout=600)  # fmt: skip
     assert first.returncode == 1 and "the next cut would take the step below" in first.stdout
+    assert f"run compress-block --resume {folder} --max-cuts 4" in first.stdout  # the way on
     stopped = json.loads((folder / "summary.json").read_text())
     assert stopped["outcome"] == "failed" and stopped["parameters"]["max_cuts"] == 0
     assert 0.0 < stopped["time"] < stopped["failed_time"] < stopped["parameters"]["t_end"]
