@@ -14,8 +14,9 @@ PYPI_PACKAGES := ipctk==1.6.1
 MPIEXEC := mpirun
 PYTEST_MPI := -q -p no:cacheprovider
 # The serial suite runs on one pytest worker per core, each test file on one worker (its module
-# fixtures, such as a report the file's tests read, are built once).
-TEST_WORKERS ?= $(shell nproc)
+# fixtures, such as a report the file's tests read, are built once). nproc counts
+# OMP_NUM_THREADS, which users of MPI codes often set to 1: the cores are counted without it.
+TEST_WORKERS ?= $(shell env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)
 PYTEST_SERIAL := -q -n $(TEST_WORKERS) --dist loadfile
 
 export OMPI_ALLOW_RUN_AS_ROOT := 1

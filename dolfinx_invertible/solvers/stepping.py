@@ -66,6 +66,17 @@ class StepController:
         ``nominal · cut ** (2 · max_cuts)``: alternating successes and failures (a solution that
         Newton cannot reach, such as an energy minimum on a kink) cannot creep on for ever.
 
+    Notes
+    -----
+    The controller remembers the last size that failed (its ceiling). Growth reaches the ceiling
+    again only after ``hold`` accepted steps below it: one at first, twice as many each time a
+    retry at the ceiling fails again, and back to one once a step of that size is accepted
+    (exponential backoff). A failure that was transient costs nothing more than before, while
+    one that persists (a time scale the step must resolve, which a cut does not change) is
+    retried after 1, 2, 4, … steps instead of after every easy one: where each failed attempt
+    spends Newton's whole iteration budget, the retries then cost a vanishing share of the run,
+    and a run whose ceiling has in fact lifted loses at most a factor of 2 in steps meanwhile.
+
     Attributes
     ----------
     step
@@ -115,6 +126,9 @@ class StepController:
         self.escalations = 0
         self._consecutive_cuts = 0
         self._budget = self.max_cuts
+        self._ceiling = math.inf
+        self._hold = 1
+        self._held = 0
 
     def size(self, remaining: float = math.inf) -> float:
         """Return the size of the next attempt: the current step, clipped to ``remaining``."""
@@ -127,15 +141,29 @@ class StepController:
         self.accepted.append(size)
         self._consecutive_cuts = 0
         self._budget = self.max_cuts
+        if self._reaches_ceiling(size):
+            self._ceiling, self._hold, self._held = math.inf, 1, 0
+        else:
+            self._held += 1
         if result.newton_iterations <= self.easy_iterations:
-            self.step = min(self.nominal, max(self.step, size) * self.growth)
+            grown = min(self.nominal, max(self.step, size) * self.growth)
+            if self._reaches_ceiling(grown) and self._held < self._hold:
+                grown = max(self.step, size)
+            self.step = grown
 
     def failed(self, size: float) -> bool:
         """Record a failed attempt of ``size`` and cut; ``False`` once the cuts are used up."""
         self.cuts += 1
         self._consecutive_cuts += 1
+        if self._reaches_ceiling(size):
+            self._hold *= 2
+        self._ceiling = min(self._ceiling, size)
+        self._held = 0
         self.step = size * self.cut
         return self._consecutive_cuts <= self._budget and self.step >= self.minimum
+
+    def _reaches_ceiling(self, size: float) -> bool:
+        return size >= self._ceiling * (1.0 - _SNAP)
 
     def restart(self, size: float) -> None:
         """Try ``size`` again with a fresh budget of ``max_cuts`` cuts (after an escalation)."""
@@ -153,6 +181,9 @@ class StepController:
             "consecutive_cuts": self._consecutive_cuts,
             "budget": self._budget,
             "max_cuts": self.max_cuts,
+            "ceiling": self._ceiling if math.isfinite(self._ceiling) else None,
+            "hold": self._hold,
+            "held": self._held,
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -165,6 +196,10 @@ class StepController:
         # The budget left to the step in progress grows or shrinks with a changed max_cuts.
         saved_max_cuts = int(state.get("max_cuts", self.max_cuts))
         self._budget = int(state["budget"]) + self.max_cuts - saved_max_cuts
+        ceiling = state.get("ceiling")
+        self._ceiling = math.inf if ceiling is None else float(ceiling)
+        self._hold = int(state.get("hold", 1))
+        self._held = int(state.get("held", 0))
 
     @property
     def consecutive_cuts(self) -> int:

@@ -475,3 +475,56 @@ def test_a_restored_controller_takes_a_changed_budget_of_cuts():
     controller = StepController(0.1, max_cuts=3)
     controller.restore(older)
     assert not controller.failed(0.025)
+
+
+def _converged(newton_iterations: int) -> SolveResult:
+    return SolveResult(True, 2, "CONVERGED_FNORM_RELATIVE", newton_iterations, 0, 0.0, None, 0.0)
+
+
+def test_a_size_that_keeps_failing_is_retried_after_exponentially_more_steps():
+    # Every step above 0.025 fails, every step at or below it is easy: the controller grows
+    # back to the failed size after 1, 2, 4, ... accepted steps, not after every one.
+    controller = StepController(0.1, max_cuts=6)
+    attempts = []
+    while len(controller.accepted) < 40:
+        size = controller.size()
+        attempts.append(size)
+        if size > 0.025 * (1 + 1e-12):
+            assert controller.failed(size)
+        else:
+            controller.succeeded(size, _converged(3))
+    retries = [i for i, size in enumerate(attempts) if size == pytest.approx(0.05)]
+    accepted_between = [
+        sum(1 for size in attempts[a + 1 : b] if size <= 0.025 * (1 + 1e-12))
+        for a, b in zip(retries, retries[1:])
+    ]
+    assert accepted_between[:4] == [1, 2, 4, 8]
+    assert controller.cuts == len(retries) + 1  # the first attempt at 0.1, then each retry
+    # Without the backoff the failed size would have been retried after every accepted step.
+    assert controller.cuts < len(controller.accepted) / 4
+
+
+def test_the_ceiling_lifts_once_a_step_of_its_size_is_accepted():
+    controller = StepController(0.1, max_cuts=6)
+    assert controller.failed(0.1) and controller.failed(0.05)  # two cuts: at 0.025 now
+    controller.succeeded(controller.size(), _converged(3))
+    assert controller.size() == pytest.approx(0.05)  # the first retry after one step
+    assert controller.failed(0.05)
+    controller.succeeded(controller.size(), _converged(3))
+    assert controller.size() == pytest.approx(0.025)  # the second waits for two
+    state = controller.state()
+    controller.succeeded(controller.size(), _converged(3))
+    assert controller.size() == pytest.approx(0.05)
+    controller.succeeded(0.05, _converged(3))  # the retry goes through: growth as before
+    assert controller.size() == pytest.approx(0.1)
+    # The hold survives a checkpoint.
+    restored = StepController(0.1, max_cuts=6)
+    restored.restore(state)
+    restored.succeeded(restored.size(), _converged(3))
+    assert restored.size() == pytest.approx(0.05)
+    # A checkpoint written before the ceiling was saved restores none (growth as it was).
+    older = {name: value for name, value in state.items() if name not in ("ceiling", "hold", "held")}
+    restored = StepController(0.1, max_cuts=6)
+    restored.restore(older)
+    restored.succeeded(restored.size(), _converged(3))
+    assert restored.size() == pytest.approx(0.05)

@@ -28,7 +28,8 @@ read -ra extra_arguments <<< "${COMPAT_PYTEST_ARGS:-}"
 pytest_flags+=("${extra_arguments[@]}")
 # Serially, one pytest worker per core (each test file on one worker), as `make test` does; but
 # the DOLFINx lanes run side by side, one pytest process each, when there are two of them.
-serial_flags=(-n "$(nproc)" --dist loadfile)
+# nproc counts OMP_NUM_THREADS, which make sets to 1: the cores are counted without it.
+serial_flags=(-n "$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)" --dist loadfile)
 side_by_side=0
 # A hung run must not eat the CI budget (90 min), but a slow machine must not fail a lane: the
 # wheel lane's serial run, one process beside the trixie lane, took 16 min on one machine and
