@@ -523,7 +523,8 @@ def test_the_ceiling_lifts_once_a_step_of_its_size_is_accepted():
     restored.succeeded(restored.size(), _converged(3))
     assert restored.size() == pytest.approx(0.05)
     # A checkpoint written before the ceiling was saved restores none (growth as it was).
-    older = {name: value for name, value in state.items() if name not in ("ceiling", "hold", "held")}
+    memory = ("ceiling", "hold", "held")
+    older = {name: value for name, value in state.items() if name not in memory}
     restored = StepController(0.1, max_cuts=6)
     restored.restore(older)
     restored.succeeded(restored.size(), _converged(3))
