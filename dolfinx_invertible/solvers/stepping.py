@@ -68,16 +68,14 @@ class StepController:
 
     Notes
     -----
-    The controller remembers the sizes that failed. Growth reaches a failed size again only
-    after a hold of accepted steps since its last failure: one step at first, twice as many each
-    time a retry of that size fails again; a size's memory, and that of every smaller size, is
-    dropped once a step of that size is accepted (exponential backoff, per size). A failure that
-    was transient costs nothing more than without it, while one that persists (a time scale the
-    step must resolve, which a cut does not change) is retried after 1, 2, 4, … steps instead of
-    after every easy one: where each failed attempt spends Newton's whole iteration budget, the
-    retries then cost a vanishing share of the run, and a run whose limit has in fact lifted
-    loses at most a factor of 2 in steps meanwhile. A smaller size that fails once does not
-    reset the hold of a larger one.
+    The controller remembers the last size that failed (its ceiling). Growth reaches the ceiling
+    again only after ``hold`` accepted steps below it: one at first, twice as many each time a
+    retry at the ceiling fails again, and back to one once a step of that size is accepted
+    (exponential backoff). A failure that was transient costs nothing more than before, while
+    one that persists (a time scale the step must resolve, which a cut does not change) is
+    retried after 1, 2, 4, … steps instead of after every easy one: where each failed attempt
+    spends Newton's whole iteration budget, the retries then cost a vanishing share of the run,
+    and a run whose ceiling has in fact lifted loses at most a factor of 2 in steps meanwhile.
 
     Attributes
     ----------
@@ -128,8 +126,9 @@ class StepController:
         self.escalations = 0
         self._consecutive_cuts = 0
         self._budget = self.max_cuts
-        # [size, hold, accepted steps when it last failed] of each size that failed.
-        self._failed_sizes: list[list[float]] = []
+        self._ceiling = math.inf
+        self._hold = 1
+        self._held = 0
 
     def size(self, remaining: float = math.inf) -> float:
         """Return the size of the next attempt: the current step, clipped to ``remaining``."""
@@ -142,11 +141,13 @@ class StepController:
         self.accepted.append(size)
         self._consecutive_cuts = 0
         self._budget = self.max_cuts
-        reached = size + _SNAP * self.nominal
-        self._failed_sizes = [entry for entry in self._failed_sizes if entry[0] > reached]
+        if self._reaches_ceiling(size):
+            self._ceiling, self._hold, self._held = math.inf, 1, 0
+        else:
+            self._held += 1
         if result.newton_iterations <= self.easy_iterations:
             grown = min(self.nominal, max(self.step, size) * self.growth)
-            if self._held_back(grown):
+            if self._reaches_ceiling(grown) and self._held < self._hold:
                 grown = max(self.step, size)
             self.step = grown
 
@@ -154,23 +155,15 @@ class StepController:
         """Record a failed attempt of ``size`` and cut; ``False`` once the cuts are used up."""
         self.cuts += 1
         self._consecutive_cuts += 1
-        for entry in self._failed_sizes:
-            if abs(entry[0] - size) <= _SNAP * self.nominal:
-                entry[1] *= 2
-                entry[2] = len(self.accepted)
-                break
-        else:
-            self._failed_sizes.append([size, 1, len(self.accepted)])
+        if self._reaches_ceiling(size):
+            self._hold *= 2
+        self._ceiling = min(self._ceiling, size)
+        self._held = 0
         self.step = size * self.cut
         return self._consecutive_cuts <= self._budget and self.step >= self.minimum
 
-    def _held_back(self, size: float) -> bool:
-        """Whether a size that failed, up to ``size``, still waits for accepted steps."""
-        steps = len(self.accepted)
-        return any(
-            failed <= size + _SNAP * self.nominal and steps - since < hold
-            for failed, hold, since in self._failed_sizes
-        )
+    def _reaches_ceiling(self, size: float) -> bool:
+        return size >= self._ceiling * (1.0 - _SNAP)
 
     def restart(self, size: float) -> None:
         """Try ``size`` again with a fresh budget of ``max_cuts`` cuts (after an escalation)."""
@@ -188,7 +181,9 @@ class StepController:
             "consecutive_cuts": self._consecutive_cuts,
             "budget": self._budget,
             "max_cuts": self.max_cuts,
-            "failed_sizes": [list(entry) for entry in self._failed_sizes],
+            "ceiling": self._ceiling if math.isfinite(self._ceiling) else None,
+            "hold": self._hold,
+            "held": self._held,
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -201,10 +196,10 @@ class StepController:
         # The budget left to the step in progress grows or shrinks with a changed max_cuts.
         saved_max_cuts = int(state.get("max_cuts", self.max_cuts))
         self._budget = int(state["budget"]) + self.max_cuts - saved_max_cuts
-        self._failed_sizes = [
-            [float(size), int(hold), int(since)]
-            for size, hold, since in state.get("failed_sizes", [])
-        ]
+        ceiling = state.get("ceiling")
+        self._ceiling = math.inf if ceiling is None else float(ceiling)
+        self._hold = int(state.get("hold", 1))
+        self._held = int(state.get("held", 0))
 
     @property
     def consecutive_cuts(self) -> int:

@@ -504,7 +504,7 @@ def test_a_size_that_keeps_failing_is_retried_after_exponentially_more_steps():
     assert controller.cuts < len(controller.accepted) / 4
 
 
-def test_the_memory_of_a_failed_size_lifts_once_a_step_of_its_size_is_accepted():
+def test_the_ceiling_lifts_once_a_step_of_its_size_is_accepted():
     controller = StepController(0.1, max_cuts=6)
     assert controller.failed(0.1) and controller.failed(0.05)  # two cuts: at 0.025 now
     controller.succeeded(controller.size(), _converged(3))
@@ -523,27 +523,9 @@ def test_the_memory_of_a_failed_size_lifts_once_a_step_of_its_size_is_accepted()
     restored.succeeded(restored.size(), _converged(3))
     assert restored.size() == pytest.approx(0.05)
     # A checkpoint written before the ceiling was saved restores none (growth as it was).
-    older = {name: value for name, value in state.items() if name != "failed_sizes"}
+    memory = ("ceiling", "hold", "held")
+    older = {name: value for name, value in state.items() if name not in memory}
     restored = StepController(0.1, max_cuts=6)
     restored.restore(older)
     restored.succeeded(restored.size(), _converged(3))
     assert restored.size() == pytest.approx(0.05)
-
-
-def test_a_smaller_size_that_fails_once_keeps_its_own_hold():
-    controller = StepController(0.1, max_cuts=6)
-    assert controller.failed(0.1)
-    for _ in range(2):  # 0.1 fails again after 1, then after 2 accepted steps: its hold is 4
-        while controller.size() < 0.1:
-            controller.succeeded(controller.size(), _converged(3))
-        assert controller.failed(0.1)
-    assert controller.failed(0.05)  # a first failure at 0.05: retried after one step
-    controller.succeeded(controller.size(), _converged(3))
-    assert controller.size() == pytest.approx(0.05)
-    controller.succeeded(0.05, _converged(3))
-    # 0.05 went through; 0.1 still waits for its four steps since its last failure.
-    sizes = []
-    while controller.size() < 0.1:
-        sizes.append(controller.size())
-        controller.succeeded(controller.size(), _converged(3))
-    assert sizes == pytest.approx([0.05, 0.05])
