@@ -269,23 +269,21 @@ def _parameters(scene, arguments: argparse.Namespace):
     return Parameters(**values)
 
 
-# Scene options a resumed run takes besides its checkpoint's parameters.
-_RESUMED_OPTIONS = ("t_end", "max_cuts")
-
-
 def _resumed_parameters(scene, arguments: argparse.Namespace):
     """Return the parameters of the run in ``--resume DIR``, with a later ``--t-end`` if given.
 
     The resumed run goes on to its end: where the first one stopped early (``--steps``) does
     not carry over. ``--max-cuts`` may change: a run whose cuts ran out continues with more.
     """
-    from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
+    from dolfinx_invertible.scenes.checkpoints import MAY_CHANGE_ON_RESUME, latest_checkpoint
     from dolfinx_invertible.scenes.parameters import Parameters
 
+    # Where the first run stopped early (t_stop, from --steps) is not an option of the second.
+    resumed = [name for name in MAY_CHANGE_ON_RESUME if name != "t_stop"]
     given = [
         name
         for name in Parameters.__dataclass_fields__
-        if name not in _RESUMED_OPTIONS and getattr(arguments, name, None) is not None
+        if name not in resumed and getattr(arguments, name, None) is not None
     ]
     if given or arguments.out is not None:
         options = [f"--{name.replace('_', '-')}" for name in given]
@@ -298,7 +296,7 @@ def _resumed_parameters(scene, arguments: argparse.Namespace):
     # whole checkpoint has only these).
     values = latest_checkpoint(arguments.resume)[1]["parameters"]
     values["t_stop"] = None
-    for name in _RESUMED_OPTIONS:
+    for name in resumed:
         if getattr(arguments, name, None) is not None:
             values[name] = getattr(arguments, name)
     return Parameters(**values)

@@ -153,8 +153,8 @@ def latest_checkpoint(output: Path) -> tuple[list[Path], dict[str, Any]]:
     return max(candidates, key=lambda candidate: candidate[1]["steps_written"])
 
 
-# Parameters a resumed run may give new values: where it stops and how far it may cut a step.
-_MAY_CHANGE = ("t_end", "t_stop", "max_cuts")
+#: Parameters a resumed run may give new values: where it stops and how far it may cut a step.
+MAY_CHANGE_ON_RESUME = ("t_end", "t_stop", "max_cuts")
 
 
 def check_resumable(
@@ -175,7 +175,7 @@ def check_resumable(
     differing = [
         name
         for name, value in state["parameters"].items()
-        if name not in _MAY_CHANGE and given.get(name) != value
+        if name not in MAY_CHANGE_ON_RESUME and given.get(name) != value
     ]
     if differing:
         raise ValueError(
