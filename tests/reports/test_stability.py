@@ -257,6 +257,7 @@ def test_resolution_axis_runs_the_chosen_cells_at_the_chosen_resolution(tmp_path
         ({"poisson_ratios": [0.4]}, "nu = 0.4 is not on the study's axis"),
         ({"time_steps": [0.5]}, "dt = 0.5 is not on the study's axis"),
         ({"resolution": 0}, "resolution must be a positive integer"),
+        ({"cell_timeout": 0.0}, "cell_timeout must be a number of seconds > 0"),
     ],
 )
 def test_values_off_the_study_axes_are_refused(tmp_path, options, message):

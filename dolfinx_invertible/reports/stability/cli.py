@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from dolfinx_invertible.reports.stability.pool import CELL_TIMEOUT
 from dolfinx_invertible.reports.stability.report import run
 from dolfinx_invertible.reports.stability.study import (
     METHODS,
@@ -59,6 +60,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="run every scene at this mesh resolution (the study's resolution axis; default: "
         "each scene's own, 4 for the relaxations, 2 for the driven scenes)",
     )
+    parser.add_argument(
+        "--cell-timeout",
+        type=float,
+        default=CELL_TIMEOUT,
+        metavar="SECONDS",
+        help=f"stop a cell after this many seconds and record it as timed out (default "
+        f"{CELL_TIMEOUT:g})",
+    )
     parser.add_argument("--quiet", action="store_true", help="no line per finished cell")
 
 
@@ -70,6 +79,8 @@ def command(arguments: argparse.Namespace) -> int:
         raise SystemExit("--workers must be at least 1")
     if arguments.resolution is not None and arguments.resolution < 1:
         raise SystemExit("--resolution must be at least 1")
+    if not arguments.cell_timeout > 0.0:
+        raise SystemExit("--cell-timeout must be a number of seconds > 0")
 
     def interrupt(number, frame):
         raise KeyboardInterrupt(f"stopped by {signal.Signals(number).name}")
@@ -88,6 +99,8 @@ def command(arguments: argparse.Namespace) -> int:
             words.append(f"--{flag} {value:g}")
     if arguments.resolution is not None:
         words.append(f"--resolution {arguments.resolution}")
+    if arguments.cell_timeout != CELL_TIMEOUT:
+        words.append(f"--cell-timeout {arguments.cell_timeout:g}")
     result = run(
         arguments.out,
         quick=arguments.quick,
@@ -99,6 +112,7 @@ def command(arguments: argparse.Namespace) -> int:
         youngs_moduli=arguments.E,
         time_steps=arguments.dt,
         resolution=arguments.resolution,
+        cell_timeout=arguments.cell_timeout,
         progress=not arguments.quiet,
         command_line=" ".join(words),
     )

@@ -19,7 +19,7 @@ from dolfinx_invertible.reports.stability.outputs import (
     summary_lines,
     write_csv,
 )
-from dolfinx_invertible.reports.stability.pool import run_cells
+from dolfinx_invertible.reports.stability.pool import CELL_TIMEOUT, run_cells
 from dolfinx_invertible.reports.stability.study import (
     METHODS_BY_NAME,
     POISSON_RATIOS,
@@ -45,6 +45,7 @@ def run(
     youngs_moduli: Sequence[float] | None = None,
     time_steps: Sequence[float] | None = None,
     resolution: int | None = None,
+    cell_timeout: float = CELL_TIMEOUT,
     progress: bool = False,
     command_line: str | None = None,
 ) -> dict[str, Any]:
@@ -68,6 +69,8 @@ def run(
     resolution
         Run every scene at this mesh resolution instead of its own (:data:`SCENE_SETUPS`): the
         study's resolution axis, one output directory per resolution.
+    cell_timeout
+        Seconds a cell may run before it is stopped and recorded as ``timeout``.
     progress
         Print one line per finished cell.
     command_line
@@ -101,6 +104,8 @@ def run(
             )
     if resolution is not None and not (isinstance(resolution, int) and resolution >= 1):
         raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
+    if not cell_timeout > 0.0:
+        raise ValueError(f"cell_timeout must be a number of seconds > 0, got {cell_timeout!r}")
     cells = [
         dataclasses.replace(cell, resolution=resolution)
         for cell in matrix(quick)
@@ -146,7 +151,13 @@ def run(
                     flush=True,
                 )
 
-        new = run_cells(todo, workers=workers, log_directory=logs, on_result=finished)
+        new = run_cells(
+            todo,
+            workers=workers,
+            timeout=cell_timeout,
+            log_directory=logs,
+            on_result=finished,
+        )
     wall_time = time.perf_counter() - begin
     by_key = {**done, **{tuple(_key(record)): record for record in new}}
     records = [by_key[cell.key] for cell in cells if cell.key in by_key]
