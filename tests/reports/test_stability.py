@@ -147,6 +147,36 @@ def test_overlap_count_finds_a_body_folded_through_itself():
     assert runner.overlapping_cells(u) > 0
 
 
+def test_overlap_count_equals_the_test_of_every_pair_on_a_tangled_body(monkeypatch):
+    from mpi4py import MPI
+
+    import dolfinx
+    import numpy as np
+
+    from dolfinx_invertible import _compat
+
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
+    # Vertices thrown into a box of half the body's size: cells of every size cross.
+    u.x.array[:] = np.random.default_rng(7).uniform(-0.5, 0.5, u.x.array.size)
+    cells = _compat.cell_dofs(u.function_space)[:, :4]
+    simplices = (u.function_space.tabulate_dof_coordinates() + u.x.array.reshape(-1, 3))[cells]
+    centroids = simplices.mean(axis=1)
+    inside_any = np.zeros(len(cells), dtype=bool)
+    for index, simplex in enumerate(simplices):
+        edges = (simplex[1:] - simplex[0]).T
+        barycentric = np.linalg.solve(edges, (centroids - simplex[0]).T).T
+        inside = (barycentric > 1e-9).all(axis=1) & (barycentric.sum(axis=1) < 1 - 1e-9)
+        shares = np.isin(cells, cells[index]).any(axis=1)
+        inside_any |= inside & ~shares
+    expected = int(np.count_nonzero(inside_any))
+    assert expected > 10
+    assert runner.overlapping_cells(u) == expected
+    # Chunks of a few pairs at a time count the same.
+    monkeypatch.setattr(runner, "_OVERLAP_PAIRS", 50)
+    assert runner.overlapping_cells(u) == expected
+
+
 def test_inverted_energy_minimum_finds_the_energies_below_rest():
     from dolfinx_invertible.scenes.parameters import Parameters
 

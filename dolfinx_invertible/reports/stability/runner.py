@@ -34,6 +34,8 @@ __all__ = [
 LONG_SOLVE = 1000
 #: Largest tangent assembled densely for its spectrum at a failure (unknowns).
 SPECTRUM_LIMIT = 3000
+#: Candidate (cell, centroid) pairs the overlap count tests at a time.
+_OVERLAP_PAIRS = 1 << 20
 
 #: How a failure message names the SNES and KSP reasons (SolveResult.describe).
 _REASON_PATTERN = re.compile(r"failed \((?P<snes>[A-Z_]+)(?:, KSP (?P<ksp>[A-Z_0-9]+))?\)")
@@ -187,9 +189,13 @@ def overlapping_cells(u) -> int:
 
     Cells that share a vertex are not compared. A positive count means the body has passed
     through itself: an uninverted, locally injective configuration can still be tangled
-    globally, and the elastic energy has no term against it.
+    globally, and the elastic energy has no term against it. Only the centroids within a
+    cell's reach (its farthest vertex from its own centroid) are tested against it, about a
+    million pairs at a time, so time and memory follow the number of such pairs, not the
+    square of the number of cells.
     """
     import numpy as np
+    from scipy.spatial import cKDTree
 
     from dolfinx_invertible import _compat
 
@@ -201,17 +207,33 @@ def overlapping_cells(u) -> int:
     centroids = simplices.mean(axis=1)
     edges = np.transpose(simplices[:, 1:] - simplices[:, :1], (0, 2, 1))
     determinant = np.linalg.det(edges)
-    usable = np.abs(determinant) > 1e-14 * np.abs(edges).max() ** d
-    inverse = np.zeros_like(edges)
-    inverse[usable] = np.linalg.inv(edges[usable])
-    offsets = centroids[None, :, :] - simplices[:, None, 0, :]
-    barycentric = np.einsum("nij,nmj->nmi", inverse, offsets)
+    usable = np.flatnonzero(np.abs(determinant) > 1e-14 * np.abs(edges).max() ** d)
+    inverse = np.linalg.inv(edges[usable])
+    reach = np.linalg.norm(simplices[usable] - centroids[usable, None, :], axis=2).max(axis=1)
+    tree = cKDTree(centroids)
+    pairs = np.asarray(tree.query_ball_point(centroids[usable], reach, return_length=True))
+    offsets = np.concatenate([[0], np.cumsum(pairs)])
+    covered = np.zeros(len(cells), dtype=bool)
     tolerance = 1e-9
-    inside = (barycentric > tolerance).all(axis=2) & (barycentric.sum(axis=2) < 1 - tolerance)
-    inside &= usable[:, None]
-    shared = (cells[:, None, :, None] == cells[None, :, None, :]).any(axis=(2, 3))
-    inside &= ~shared
-    return int(np.count_nonzero(inside.any(axis=0)))
+    first = 0
+    while first < len(usable):
+        # About _OVERLAP_PAIRS pairs at a time bound the memory of a tangled body too.
+        end = np.searchsorted(offsets, offsets[first] + _OVERLAP_PAIRS, side="right") - 1
+        chunk = np.arange(first, max(first + 1, int(end)))
+        first = chunk[-1] + 1
+        if offsets[first] == offsets[chunk[0]]:
+            continue
+        near = tree.query_ball_point(centroids[usable[chunk]], reach[chunk])
+        point = np.concatenate([np.asarray(indices, dtype=np.int64) for indices in near])
+        container = np.repeat(chunk, pairs[chunk])
+        cell = usable[container]
+        barycentric = np.einsum(
+            "kij,kj->ki", inverse[container], centroids[point] - simplices[cell, 0]
+        )
+        inside = (barycentric > tolerance).all(axis=1) & (barycentric.sum(axis=1) < 1 - tolerance)
+        shared = (cells[cell][:, :, None] == cells[point][:, None, :]).any(axis=(1, 2))
+        covered[point[inside & ~shared]] = True
+    return int(np.count_nonzero(covered))
 
 
 def inverted_energy_minimum(parameters) -> float | None:
