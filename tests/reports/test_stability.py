@@ -97,6 +97,8 @@ def test_failures_are_told_apart_by_their_data(values, cause):
     found, detail = stability.diagnose(_failure(**values))
     assert found.startswith(cause)
     assert "t = 2 L/c" in detail
+    # A clause the record has no data for is left out, not left empty.
+    assert "; ;" not in detail
 
 
 def _continued(inverted, distance):

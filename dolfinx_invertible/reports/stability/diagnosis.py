@@ -162,9 +162,10 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
     )
     if retry == "converged":
         ending += ", and one more cut converges"
+    # The spectrum is known on small problems only (runner.SPECTRUM_LIMIT).
     tangent = (
-        f"the exact tangent at the last iterate has {record.get('tangent_negative')} negative "
-        f"eigenvalues, condition {_number(record.get('tangent_condition'))}"
+        f"; the exact tangent at the last iterate has {record.get('tangent_negative')} "
+        f"negative eigenvalues, condition {_number(record.get('tangent_condition'))}"
         if record.get("tangent_negative") is not None
         else ""
     )
@@ -195,13 +196,13 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
             "iteration cap while converging",
             f"{where}; Newton was converging linearly (residual × {_number(drop)} over the "
             f"last 10 iterations, × {_number(record.get('residual_drop'))} over the attempt) "
-            f"but not within 50 iterations; {tangent}; {ending}",
+            f"but not within 50 iterations{tangent}; {ending}",
         )
     if retry == "converged":
         return ("step-size floor" if below_floor else "cut budget", f"{where}; {ending}")
     return (
         f"solver ({stage})",
-        f"{where}; residual × {_number(drop)} over the last 10 iterations; {tangent}; "
+        f"{where}; residual × {_number(drop)} over the last 10 iterations{tangent}; "
         f"inverted points {record.get('inverted_points')}; {ending}",
     )
 
