@@ -290,11 +290,29 @@ def test_resolution_axis_runs_the_chosen_cells_at_the_chosen_resolution(tmp_path
         ({"time_steps": [0.5]}, "dt = 0.5 is not on the study's axis"),
         ({"resolution": 0}, "resolution must be a positive integer"),
         ({"cell_timeout": 0.0}, "cell_timeout must be a number of seconds > 0"),
+        ({"workers": 0}, "workers must be a positive integer"),
     ],
 )
 def test_values_off_the_study_axes_are_refused(tmp_path, options, message):
     from dolfinx_invertible.reports.stability.report import run
 
     with pytest.raises(ValueError, match=message):
-        run(tmp_path, scenes=["collapse"], methods=["nh-c2"], **options)
-    assert not (tmp_path / "cells.jsonl").exists()
+        run(tmp_path / "out", scenes=["collapse"], methods=["nh-c2"], **options)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "option, message",
+    [
+        (["--resolution", "0"], "resolution must be a positive integer, got 0"),
+        (["--cell-timeout", "-1"], "cell_timeout must be a number of seconds > 0, got -1.0"),
+        (["--workers", "0"], "workers must be a positive integer, got 0"),
+    ],
+)
+def test_the_command_refuses_an_option_with_the_api_message(tmp_path, capsys, option, message):
+    from dolfinx_invertible.cli import main
+
+    out = tmp_path / "out"
+    assert main(["report", "stability", "--scene", "collapse", "--out", str(out), *option]) == 2
+    assert f"error: {message}" in capsys.readouterr().err
+    assert not out.exists()

@@ -72,15 +72,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def command(arguments: argparse.Namespace) -> int:
-    """Run ``report stability``; exit code 1 if a worker crashed or a cell timed out."""
-    import signal
+    """Run ``report stability``.
 
-    if arguments.workers < 1:
-        raise SystemExit("--workers must be at least 1")
-    if arguments.resolution is not None and arguments.resolution < 1:
-        raise SystemExit("--resolution must be at least 1")
-    if not arguments.cell_timeout > 0.0:
-        raise SystemExit("--cell-timeout must be a number of seconds > 0")
+    Exit code 1 if a worker crashed or a cell timed out, 2 if an option was refused.
+    """
+    import signal
+    import sys
 
     def interrupt(number, frame):
         raise KeyboardInterrupt(f"stopped by {signal.Signals(number).name}")
@@ -101,21 +98,26 @@ def command(arguments: argparse.Namespace) -> int:
         words.append(f"--resolution {arguments.resolution}")
     if arguments.cell_timeout != CELL_TIMEOUT:
         words.append(f"--cell-timeout {arguments.cell_timeout:g}")
-    result = run(
-        arguments.out,
-        quick=arguments.quick,
-        workers=arguments.workers,
-        resume=arguments.resume,
-        scenes=arguments.scene,
-        methods=arguments.method,
-        poisson_ratios=arguments.nu,
-        youngs_moduli=arguments.E,
-        time_steps=arguments.dt,
-        resolution=arguments.resolution,
-        cell_timeout=arguments.cell_timeout,
-        progress=not arguments.quiet,
-        command_line=" ".join(words),
-    )
+    try:
+        result = run(
+            arguments.out,
+            quick=arguments.quick,
+            workers=arguments.workers,
+            resume=arguments.resume,
+            scenes=arguments.scene,
+            methods=arguments.method,
+            poisson_ratios=arguments.nu,
+            youngs_moduli=arguments.E,
+            time_steps=arguments.dt,
+            resolution=arguments.resolution,
+            cell_timeout=arguments.cell_timeout,
+            progress=not arguments.quiet,
+            command_line=" ".join(words),
+        )
+    except ValueError as error:
+        # ``run`` checks every option before a cell runs; its message is the user's.
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     outcomes = ", ".join(f"{name} {count}" for name, count in sorted(result["outcomes"].items()))
     print(
         f"{result['cells']} cells in {result['wall_time_s'] / 60:.1f} min: {outcomes}; "

@@ -81,8 +81,6 @@ def run(
     dict
         ``files``, ``cells``, ``outcomes`` (counts), ``causes`` (counts), ``wall_time_s``.
     """
-    directory = pathlib.Path(output_directory)
-    directory.mkdir(parents=True, exist_ok=True)
     unknown = [name for name in scenes or () if name not in SCENES]
     unknown += [name for name in methods or () if name not in METHODS_BY_NAME]
     if unknown:
@@ -106,6 +104,10 @@ def run(
         raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
     if not cell_timeout > 0.0:
         raise ValueError(f"cell_timeout must be a number of seconds > 0, got {cell_timeout!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    directory = pathlib.Path(output_directory)
+    directory.mkdir(parents=True, exist_ok=True)
     cells = [
         dataclasses.replace(cell, resolution=resolution)
         for cell in matrix(quick)
