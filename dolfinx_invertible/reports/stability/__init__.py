@@ -35,7 +35,7 @@ inverted equilibrium from an end time that was too short. :func:`diagnose` maps 
 - :mod:`.pool`: the worker processes (``python -m dolfinx_invertible.reports.stability
   --worker``);
 - :mod:`.outputs`: the CSV, the heat maps and the Markdown summary;
-- :mod:`.report`: :func:`run`, the whole study;
+- :mod:`.report`: :func:`run`, the whole study, and :func:`check_options`, what it refuses;
 - :mod:`.cli`: ``python -m dolfinx_invertible report stability [--quick] [--out DIR]``.
 """
 
@@ -43,7 +43,7 @@ from dolfinx_invertible.reports.stability.cli import add_arguments, command
 from dolfinx_invertible.reports.stability.diagnosis import diagnose
 from dolfinx_invertible.reports.stability.outputs import COLUMNS
 from dolfinx_invertible.reports.stability.pool import run_cells
-from dolfinx_invertible.reports.stability.report import run
+from dolfinx_invertible.reports.stability.report import check_options, run
 from dolfinx_invertible.reports.stability.study import (
     DENSITY,
     METHODS,
@@ -73,6 +73,7 @@ __all__ = [
     "Method",
     "SceneSetup",
     "add_arguments",
+    "check_options",
     "command",
     "diagnose",
     "matrix",

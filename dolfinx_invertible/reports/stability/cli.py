@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dolfinx_invertible.reports.stability.pool import CELL_TIMEOUT
-from dolfinx_invertible.reports.stability.report import run
+from dolfinx_invertible.reports.stability.report import check_options, run
 from dolfinx_invertible.reports.stability.study import (
     METHODS,
     POISSON_RATIOS,
@@ -98,26 +98,29 @@ def command(arguments: argparse.Namespace) -> int:
         words.append(f"--resolution {arguments.resolution}")
     if arguments.cell_timeout != CELL_TIMEOUT:
         words.append(f"--cell-timeout {arguments.cell_timeout:g}")
+    options = {
+        "scenes": arguments.scene,
+        "methods": arguments.method,
+        "poisson_ratios": arguments.nu,
+        "youngs_moduli": arguments.E,
+        "time_steps": arguments.dt,
+        "resolution": arguments.resolution,
+        "cell_timeout": arguments.cell_timeout,
+        "workers": arguments.workers,
+    }
     try:
-        result = run(
-            arguments.out,
-            quick=arguments.quick,
-            workers=arguments.workers,
-            resume=arguments.resume,
-            scenes=arguments.scene,
-            methods=arguments.method,
-            poisson_ratios=arguments.nu,
-            youngs_moduli=arguments.E,
-            time_steps=arguments.dt,
-            resolution=arguments.resolution,
-            cell_timeout=arguments.cell_timeout,
-            progress=not arguments.quiet,
-            command_line=" ".join(words),
-        )
+        check_options(**options)
     except ValueError as error:
-        # ``run`` checks every option before a cell runs; its message is the user's.
         print(f"error: {error}", file=sys.stderr)
         return 2
+    result = run(
+        arguments.out,
+        quick=arguments.quick,
+        resume=arguments.resume,
+        progress=not arguments.quiet,
+        command_line=" ".join(words),
+        **options,
+    )
     outcomes = ", ".join(f"{name} {count}" for name, count in sorted(result["outcomes"].items()))
     print(
         f"{result['cells']} cells in {result['wall_time_s'] / 60:.1f} min: {outcomes}; "

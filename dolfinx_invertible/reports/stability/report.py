@@ -30,7 +30,49 @@ from dolfinx_invertible.reports.stability.study import (
     method_label,
 )
 
-__all__ = ["run"]
+__all__ = ["check_options", "run"]
+
+
+def check_options(
+    *,
+    scenes: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+    poisson_ratios: Sequence[float] | None = None,
+    youngs_moduli: Sequence[float] | None = None,
+    time_steps: Sequence[float] | None = None,
+    resolution: int | None = None,
+    cell_timeout: float = CELL_TIMEOUT,
+    workers: int = 2,
+) -> None:
+    """Raise ``ValueError`` for an option :func:`run` refuses, before anything runs.
+
+    The parameters are :func:`run`'s.
+    """
+    unknown = [name for name in scenes or () if name not in SCENES]
+    unknown += [name for name in methods or () if name not in METHODS_BY_NAME]
+    if unknown:
+        raise ValueError(
+            f"unknown scene or method {', '.join(unknown)}; scenes: {', '.join(SCENES)}; "
+            f"methods: {', '.join(METHODS_BY_NAME)}"
+        )
+    axes = (
+        ("nu", poisson_ratios, POISSON_RATIOS),
+        ("E", youngs_moduli, YOUNGS_MODULI),
+        ("dt", time_steps, TIME_STEPS),
+    )
+    for name, chosen, values in axes:
+        off_axis = [value for value in chosen or () if value not in values]
+        if off_axis:
+            raise ValueError(
+                f"{name} = {', '.join(map(str, off_axis))} is not on the study's axis: "
+                f"{', '.join(map(str, values))}"
+            )
+    if resolution is not None and not (isinstance(resolution, int) and resolution >= 1):
+        raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
+    if not cell_timeout > 0.0:
+        raise ValueError(f"cell_timeout must be a number of seconds > 0, got {cell_timeout!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be a positive integer, got {workers!r}")
 
 
 def run(
@@ -81,31 +123,21 @@ def run(
     dict
         ``files``, ``cells``, ``outcomes`` (counts), ``causes`` (counts), ``wall_time_s``.
     """
-    unknown = [name for name in scenes or () if name not in SCENES]
-    unknown += [name for name in methods or () if name not in METHODS_BY_NAME]
-    if unknown:
-        raise ValueError(
-            f"unknown scene or method {', '.join(unknown)}; scenes: {', '.join(SCENES)}; "
-            f"methods: {', '.join(METHODS_BY_NAME)}"
-        )
-    axes = (
-        ("nu", poisson_ratios, POISSON_RATIOS),
-        ("E", youngs_moduli, YOUNGS_MODULI),
-        ("dt", time_steps, TIME_STEPS),
+    check_options(
+        scenes=scenes,
+        methods=methods,
+        poisson_ratios=poisson_ratios,
+        youngs_moduli=youngs_moduli,
+        time_steps=time_steps,
+        resolution=resolution,
+        cell_timeout=cell_timeout,
+        workers=workers,
     )
-    for name, chosen, values in axes:
-        off_axis = [value for value in chosen or () if value not in values]
-        if off_axis:
-            raise ValueError(
-                f"{name} = {', '.join(map(str, off_axis))} is not on the study's axis: "
-                f"{', '.join(map(str, values))}"
-            )
-    if resolution is not None and not (isinstance(resolution, int) and resolution >= 1):
-        raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
-    if not cell_timeout > 0.0:
-        raise ValueError(f"cell_timeout must be a number of seconds > 0, got {cell_timeout!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    axes = (
+        ("nu", poisson_ratios),
+        ("E", youngs_moduli),
+        ("dt", time_steps),
+    )
     directory = pathlib.Path(output_directory)
     directory.mkdir(parents=True, exist_ok=True)
     cells = [
@@ -113,7 +145,7 @@ def run(
         for cell in matrix(quick)
         if (not scenes or cell.scene in scenes)
         and (not methods or cell.method in methods)
-        and all(not chosen or getattr(cell, name) in chosen for name, chosen, _ in axes)
+        and all(not chosen or getattr(cell, name) in chosen for name, chosen in axes)
     ]
     records_path = directory / "cells.jsonl"
     done: dict[tuple, dict[str, Any]] = {}
