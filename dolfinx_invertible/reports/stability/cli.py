@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from dolfinx_invertible.reports.stability.pool import CELL_TIMEOUT
 from dolfinx_invertible.reports.stability.report import check_options, run
@@ -77,7 +78,6 @@ def command(arguments: argparse.Namespace) -> int:
     Exit code 1 if a worker crashed or a cell timed out, 2 if an option was refused.
     """
     import signal
-    import sys
 
     def interrupt(number, frame):
         raise KeyboardInterrupt(f"stopped by {signal.Signals(number).name}")

@@ -33,6 +33,19 @@ from dolfinx_invertible.reports.stability.study import (
 __all__ = ["check_options", "run"]
 
 
+def _axes(
+    poisson_ratios: Sequence[float] | None,
+    youngs_moduli: Sequence[float] | None,
+    time_steps: Sequence[float] | None,
+) -> tuple[tuple[str, Sequence[float] | None, tuple[float, ...]], ...]:
+    """Each axis a value may be chosen on: its cell attribute, the chosen values, the axis."""
+    return (
+        ("nu", poisson_ratios, POISSON_RATIOS),
+        ("E", youngs_moduli, YOUNGS_MODULI),
+        ("dt", time_steps, TIME_STEPS),
+    )
+
+
 def check_options(
     *,
     scenes: Sequence[str] | None = None,
@@ -55,12 +68,7 @@ def check_options(
             f"unknown scene or method {', '.join(unknown)}; scenes: {', '.join(SCENES)}; "
             f"methods: {', '.join(METHODS_BY_NAME)}"
         )
-    axes = (
-        ("nu", poisson_ratios, POISSON_RATIOS),
-        ("E", youngs_moduli, YOUNGS_MODULI),
-        ("dt", time_steps, TIME_STEPS),
-    )
-    for name, chosen, values in axes:
+    for name, chosen, values in _axes(poisson_ratios, youngs_moduli, time_steps):
         off_axis = [value for value in chosen or () if value not in values]
         if off_axis:
             raise ValueError(
@@ -133,11 +141,7 @@ def run(
         cell_timeout=cell_timeout,
         workers=workers,
     )
-    axes = (
-        ("nu", poisson_ratios),
-        ("E", youngs_moduli),
-        ("dt", time_steps),
-    )
+    axes = _axes(poisson_ratios, youngs_moduli, time_steps)
     directory = pathlib.Path(output_directory)
     directory.mkdir(parents=True, exist_ok=True)
     cells = [
@@ -145,7 +149,7 @@ def run(
         for cell in matrix(quick)
         if (not scenes or cell.scene in scenes)
         and (not methods or cell.method in methods)
-        and all(not chosen or getattr(cell, name) in chosen for name, chosen in axes)
+        and all(not chosen or getattr(cell, name) in chosen for name, chosen, _ in axes)
     ]
     records_path = directory / "cells.jsonl"
     done: dict[tuple, dict[str, Any]] = {}
