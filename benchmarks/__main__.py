@@ -5,7 +5,6 @@
 import sys
 
 if not __package__:
-    import importlib.util
     from pathlib import Path
 
     # Run as a folder: Python put the folder itself first on sys.path, where its modules would
@@ -17,12 +16,9 @@ if not __package__:
     if sys.path and Path(sys.path[0]).resolve() == folder:
         del sys.path[0]
     sys.path.append(str(folder.parent))
-    specification = importlib.util.spec_from_file_location(
-        "benchmarks", folder / "__init__.py", submodule_search_locations=[str(folder)]
-    )
-    package = importlib.util.module_from_spec(specification)
-    sys.modules["benchmarks"] = package
-    specification.loader.exec_module(package)
+    from dolfinx_invertible.cli import load_package
+
+    load_package("benchmarks", folder)
 
 from dolfinx_invertible.cli import main  # noqa: E402
 

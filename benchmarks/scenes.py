@@ -117,13 +117,13 @@ def measure(
             record = {
                 "cells": self.cells,
                 "unknowns": self.unknowns,
-                "steps": run.steps,
+                "steps": run.statistics.steps,
                 "time": run.time,
                 "stop_time": parameters.stop_time,
                 "attempts": self.attempts,
-                "newton": run.newton_total,
+                "newton": run.statistics.newton_iterations["total"],
                 "newton_all_attempts": self.newton_all_attempts,
-                "krylov": run.linear_total,
+                "krylov": run.statistics.linear_iterations,
                 "stepping_seconds": time.perf_counter() - self.started,
                 "last_failure": self.last_failure,
             }
@@ -331,7 +331,7 @@ def table(report: dict) -> str:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``bench scenes``."""
-    from dolfinx_invertible.scenes.parameters import GLOBALIZATIONS
+    from dolfinx_invertible.choices import ELASTIC_ROUTES, GLOBALIZATIONS, PRECONDITIONERS
 
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), help="scenes to run")
     parser.add_argument(
@@ -341,12 +341,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--paths", nargs="+", default=list(PATHS), choices=PATHS, help="linear solver paths"
     )
-    parser.add_argument("--pc", default="gamg", choices=("gamg", "hypre"), help="AMG (iterative)")
+    parser.add_argument(
+        "--pc", default="gamg", choices=list(PRECONDITIONERS), help="AMG (iterative)"
+    )
     parser.add_argument(
         "--elastic",
         nargs="+",
         default=["kernels"],
-        choices=("kernels", "ufl"),
+        choices=list(ELASTIC_ROUTES),
         help="how the elastic energy is assembled: this package's kernels, DOLFINx's UFL route "
         "(plain Neo-Hookean; only where nothing inverts), or both for a paired comparison "
         "(default kernels)",
@@ -355,7 +357,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--globalization",
         nargs="+",
         default=["auto"],
-        choices=GLOBALIZATIONS,
+        choices=list(GLOBALIZATIONS),
         help="Newton's globalization: the trust region on the iterative path and the line search "
         "on the direct one (auto), the energy line search, the trust region (iterative path "
         "only), or two of them for a paired comparison (default auto)",

@@ -17,6 +17,7 @@ Subcommands:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import importlib.util
 import logging
@@ -25,12 +26,11 @@ import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-__all__ = ["main", "parser"]
+from dolfinx_invertible.choices import OUTPUT_FORMATS
 
-# Generic scene options: (name, attribute, type, metavar, help with {default}). Options that
-# apply only to dynamic or only to quasi-static scenes are marked.
-_DYNAMIC_ONLY = {"density", "dt", "t_end", "scheme", "damping"}
+__all__ = ["RUN_OPTIONS", "load_package", "main", "option_table", "parser"]
 
 
 def _compile(arguments: argparse.Namespace) -> int:
@@ -51,28 +51,39 @@ def _compile(arguments: argparse.Namespace) -> int:
     return 0
 
 
+def load_package(name: str, folder: Path):
+    """Import the package in ``folder`` as ``name`` by its path, whatever else is on sys.path.
+
+    The one loader of the benchmarks: the command line finds them next to the package, and
+    ``python path/to/benchmarks`` loads its own folder, so that no other ``benchmarks`` on
+    ``sys.path`` stands in for them. One already loaded (``python -m benchmarks``, the tests)
+    is returned as it is.
+    """
+    loaded = sys.modules.get(name)
+    if loaded is not None:
+        return loaded
+    specification = importlib.util.spec_from_file_location(
+        name, folder / "__init__.py", submodule_search_locations=[str(folder)]
+    )
+    package = importlib.util.module_from_spec(specification)
+    sys.modules[name] = package
+    specification.loader.exec_module(package)
+    return package
+
+
 def _benchmarks():
     """Return the ``benchmarks`` package of the source checkout of this package, or None.
 
     The benchmarks are not installed: in a checkout they sit beside the package directory, at
-    the repository root (with ``pyproject.toml``), and are loaded from there by path, so that
-    no other ``benchmarks`` on ``sys.path`` stands in for them. One already loaded (``python
-    -m benchmarks``, the tests) is taken as it is.
+    the repository root (with ``pyproject.toml``).
     """
-    loaded = sys.modules.get("benchmarks")
-    if loaded is not None:
-        return loaded
+    if "benchmarks" in sys.modules:
+        return sys.modules["benchmarks"]
     root = Path(__file__).resolve().parent.parent
     folder = root / "benchmarks"
     if not ((folder / "__init__.py").is_file() and (root / "pyproject.toml").is_file()):
         return None
-    specification = importlib.util.spec_from_file_location(
-        "benchmarks", folder / "__init__.py", submodule_search_locations=[str(folder)]
-    )
-    package = importlib.util.module_from_spec(specification)
-    sys.modules["benchmarks"] = package
-    specification.loader.exec_module(package)
-    return package
+    return load_package("benchmarks", folder)
 
 
 def _no_benchmarks(arguments: argparse.Namespace) -> int:
@@ -96,158 +107,114 @@ def _list(arguments: argparse.Namespace) -> int:
 
 
 def _scene_options(subparser: argparse.ArgumentParser, scene) -> None:
-    """Add the generic options to a scene's parser, with that scene's defaults in the help."""
-    from dolfinx_invertible.scenes.parameters import (
-        EXTENSION_NAMES,
-        GLOBALIZATIONS,
-        LINEAR_SOLVERS,
-        MODEL_NAMES,
-        OUTPUT_FORMATS,
-        PRECONDITIONERS,
-        PROJECT_CHOICES,
-        Parameters,
-    )
+    """Add a scene's options to its parser: the parameters that apply to it, then the run's."""
+    from dolfinx_invertible.scenes.parameters import OPTION_GROUPS, Parameters
 
+    groups = {name: subparser.add_argument_group(name) for name in OPTION_GROUPS}
     defaults = Parameters(**scene.defaults)
+    for field in dataclasses.fields(Parameters):
+        option = _parameter_option(field, scene, getattr(defaults, field.name))
+        if option is not None:
+            group, name, settings = option
+            groups[group].add_argument(name, dest=field.name, **settings)
+    _run_options(subparser, scene)
 
-    def default(name):
-        return getattr(defaults, name)
 
-    group = subparser.add_argument_group("material")
-    group.add_argument(
-        "--model", choices=list(MODEL_NAMES), help=f"energy model (default: {default('model')})"
+def _parameter_option(field, scene, default) -> tuple[str, str, dict] | None:
+    """Return (group, option, add_argument settings) of a parameter for ``scene``, or None."""
+    from dolfinx_invertible.scenes.parameters import (
+        SCENE_KINDS,
+        option_name,
+        options_of,
+        shown_default,
     )
-    group.add_argument(
-        "--extension",
-        choices=list(EXTENSION_NAMES),
-        help="invertible extension (default: c2 for neo-hookean, which is undefined at J <= 0; "
-        "none for the other models, which are defined through inversion)",
-    )
-    group.add_argument("--E", type=float, metavar="PA", help=f"Young's modulus [Pa] "
-                       f"(default: {default('E'):g})")  # fmt: skip
-    group.add_argument("--nu", type=float, metavar="NU", help=f"Poisson ratio, in (-1, 0.5) "
-                       f"(default: {default('nu'):g})")  # fmt: skip
-    group.add_argument("--eps", type=float, metavar="EPS", help="extension threshold, in (0, 1): "
-                       "on J for c2 and ife (default 0.9), on each singular value for c1 "
-                       "(default 0.4)")  # fmt: skip
-    group.add_argument("--k", type=float, metavar="K", help="c1 penalty stiffness [Pa] "
-                       "(default: 20 E)")  # fmt: skip
-    if scene.dynamic:
-        group.add_argument("--density", type=float, metavar="RHO", help=f"mass density "
-                           f"[kg/m^3] (default: {default('density'):g})")  # fmt: skip
-        time_group = subparser.add_argument_group("time stepping")
-        time_group.add_argument("--dt", type=float, metavar="DT", help=f"largest time step [s] "
-                                f"(default: {default('dt'):g})")  # fmt: skip
-        time_group.add_argument("--steps", type=int, metavar="N", help="stop after N steps of "
-                                "dt (at t = N dt, at most --t-end); the scene's loading keeps "
-                                "its schedule over --t-end")  # fmt: skip
-        time_group.add_argument("--t-end", type=float, metavar="T", dest="t_end", help=f"end "
-                                f"time [s] (default: {default('t_end'):g})")  # fmt: skip
-        time_group.add_argument("--scheme", choices=["backward-euler", "bdf2"],
-                                help=f"time integrator (default: {default('scheme')})")  # fmt: skip
-        time_group.add_argument("--damping", type=float, metavar="ZETA", help="mass-proportional "
-                                "damping as a fraction of critical damping of the lowest mode "
-                                f"(default: {default('damping'):g})")  # fmt: skip
+
+    metadata = options_of(field, dynamic=scene.dynamic)
+    if metadata is None:
+        return None
+    # argparse %-formats help texts; a help's "20 % of" is text.
+    help_text = metadata["help"].replace("{default}", shown_default(default)).replace("%", "%%")
+    settings: dict[str, Any] = {"help": help_text}
+    kind = metadata["scenes"]
+    if kind == "scene-choices":
+        values = scene.choices.get(field.name)
+        if field.name == "mesh" and scene.takes_mesh_file:
+            names = " | ".join(values or ())
+            settings["metavar"] = f"{{{names}}}|PATH" if names else "PATH"
+            settings["help"] = (
+                "the body: a gmsh .msh or XDMF mesh file of straight tetrahedra, fitted into the "
+                "box the scene's own body fills (--resolution does not apply)"
+                + (f", or one of {names} (default: {default})" if names else "")
+            )
+        elif values is None:
+            return None
+        else:
+            settings.update(choices=list(values), type=type(values[0]))
+    elif not SCENE_KINDS[kind][1](scene):
+        return None
+    elif metadata["flag"]:
+        settings.update(action="store_const", const=True)
+    elif metadata["choices"] is not None:
+        settings["choices"] = list(metadata["choices"])
     else:
-        group = subparser.add_argument_group("load stepping")
-        group.add_argument("--steps", type=int, metavar="N", help=f"load steps (default: "
-                           f"{default('steps')})")  # fmt: skip
-    discretisation = subparser.add_argument_group("discretisation and solver")
-    discretisation.add_argument("--resolution", type=int, metavar="N", help=f"mesh resolution, "
-                                f"cells along the shortest edge (default: "
-                                f"{default('resolution')})")  # fmt: skip
-    discretisation.add_argument("--degree", type=int, choices=[1, 2], help=f"Lagrange degree "
-                                f"(default: {default('degree')})")  # fmt: skip
-    discretisation.add_argument("--size", type=float, metavar="L", help=f"size of the body [m] "
-                                f"(default: {default('size'):g})")  # fmt: skip
-    for name, values in scene.choices.items():
-        if name == "mesh" and scene.takes_mesh_file:
-            continue
-        discretisation.add_argument(f"--{name}", choices=list(values),
-                                    type=type(values[0]), help=f"{name} (default: "
-                                    f"{default(name)})")  # fmt: skip
-    if scene.takes_mesh_file:
-        names = " | ".join(scene.choices.get("mesh", ()))
-        discretisation.add_argument("--mesh", metavar="PATH" if not names else f"{{{names}}}|PATH",
-                                    help="the body: a gmsh .msh or XDMF mesh file of "
-                                    "straight tetrahedra, fitted into the box the scene's "
-                                    "own body fills (--resolution does not apply)"
-                                    + (f", or one of {names} (default: {default('mesh')})"
-                                       if names else ""))  # fmt: skip
-    discretisation.add_argument("--project", choices=list(PROJECT_CHOICES), help="tangent: auto "
-                                "(exact, projected where the exact one gives no descent), yes "
-                                "(SPD-projected), no (exact) (default: "
-                                f"{default('project')})")  # fmt: skip
-    discretisation.add_argument("--elastic", choices=["kernels", "ufl"], help="how the elastic "
-                                "energy is assembled: this package's kernels, or DOLFINx's own "
-                                "route (plain Neo-Hookean in UFL, compiled by FFCx) (default: "
-                                f"{default('elastic')})")  # fmt: skip
-    discretisation.add_argument("--inversion-free", type=float, metavar="FRACTION",
-                                dest="inversion_free", help="cap Newton steps so that no point's "
-                                "volume falls below FRACTION of its current value (default: "
-                                f"{default('inversion_free')})")  # fmt: skip
-    discretisation.add_argument("--linear-solver", choices=list(LINEAR_SOLVERS),
-                                dest="linear_solver", help="Newton's linear solves: a sparse "
-                                "factorisation (direct), conjugate gradients on the exact tangent "
-                                "preconditioned by AMG on the projected one, stopped at negative "
-                                "curvature (iterative), or auto: direct up to "
-                                "DIRECT_SOLVE_LIMIT unknowns (docs/guide.md) (default: "
-                                f"{default('linear_solver')})")  # fmt: skip
-    discretisation.add_argument("--pc", choices=list(PRECONDITIONERS), help="AMG of the "
-                                "iterative path: PETSc's GAMG or hypre's BoomerAMG (default: "
-                                f"{default('pc')})")  # fmt: skip
-    discretisation.add_argument("--globalization", choices=list(GLOBALIZATIONS), help="how "
-                                "Newton's steps are kept safe: the energy line search, or a "
-                                "trust region around conjugate gradients on the exact tangent "
-                                "that follows negative curvature (the iterative path only); "
-                                "auto: the trust region on the iterative path, the line "
-                                "search on the direct one (default: "
-                                f"{default('globalization')})")  # fmt: skip
-    resumable = "; a run stopped so goes on with --resume DIR --max-cuts M" if scene.dynamic else ""
-    discretisation.add_argument("--max-cuts", type=int, metavar="N", dest="max_cuts",
-                                help="consecutive halvings of a failing step before the run "
-                                f"stops{resumable} (default: {default('max_cuts')})")  # fmt: skip
-    if scene.takes_friction or scene.several_bodies or scene.takes_self_contact:
-        discretisation.add_argument("--friction", type=float, metavar="MU", help="Coulomb's "
-                                    "friction coefficient of the contacts, lagged per time step "
-                                    f"(default: {default('friction'):g})")  # fmt: skip
-        discretisation.add_argument("--friction-velocity", type=float, metavar="EPS_V",
-                                    dest="friction_velocity", help="slip speed [m/s] below "
-                                    "which friction sticks (elastically) (default: "
-                                    f"{default('friction_velocity'):g})")  # fmt: skip
-    if scene.several_bodies:
-        discretisation.add_argument("--count", type=int, metavar="N", help="number of bodies "
-                                    f"(default: {default('count')})")  # fmt: skip
-    if scene.takes_self_contact or scene.self_contact_refusal:
-        discretisation.add_argument("--self-contact", action="store_const", const=True,
-                                    dest="self_contact", help="keep the body's surface from "
-                                    "passing through itself: IPC Toolkit's barrier between "
-                                    "surface primitives closer than d̂ and continuous collision "
-                                    "detection on every Newton step (docs/contact.md)")  # fmt: skip
-    discretisation.add_argument("--petsc-option", action="append", default=[],
-                                metavar="NAME=VALUE", dest="petsc_option", help="a PETSc "
-                                "option of the solver, without prefix or dash, e.g. "
-                                "ksp_rtol=1e-8 or snes_monitor= (repeatable; -NAME VALUE with the "
-                                "dolfinx_invertible_ prefix works too)")  # fmt: skip
-    output = subparser.add_argument_group("output")
-    output.add_argument("--out", type=Path, metavar="DIR", help=f"output directory (default: "
-                        f"results/{scene.name})")  # fmt: skip
-    output.add_argument("--quiet", action="store_true", help="no progress bar")
-    output.add_argument("--verbose", action="store_true", help="show compiler and solver "
-                        "chatter (FFCx, cffi, numba warnings)")  # fmt: skip
-    output.add_argument("--format", choices=list(OUTPUT_FORMATS), default="xdmf",
-                        dest="output_format", help="xdmf (ParaView's XDMF3 reader, every "
-                        "DOLFINx), vtx (ADIOS2 VTX: the displacement at full order; needs "
-                        "DOLFINx with ADIOS2, not bookworm's 0.5.2) or both "
-                        "(default: xdmf)")  # fmt: skip
-    if scene.dynamic:
-        output.add_argument("--checkpoint-every", type=int, metavar="N", default=10,
-                            dest="checkpoint_every", help="write DIR/checkpoint.npz every N "
-                            "steps and after the last one, to --resume from (0: never; "
-                            "default: 10)")  # fmt: skip
-        output.add_argument("--resume", type=Path, metavar="DIR", help="continue the stopped "
-                            "run in DIR from its checkpoint, with its own parameters (--t-end "
-                            "may be later), appending to its output")  # fmt: skip
+        settings.update(type=_argument_type(field), metavar=metadata["metavar"])
+    return metadata["group"], option_name(field), settings
+
+
+def _argument_type(field) -> type:
+    """Return the type argparse converts an option's value to (int, float or str)."""
+    annotation = str(field.type)
+    return int if annotation.startswith("int") else float if "float" in annotation else str
+
+
+#: The options of a run that are not parameters: (option, add_argument settings).
+RUN_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("--petsc-option", dict(action="append", default=[], metavar="NAME=VALUE",
+     dest="petsc_option", help="a PETSc option of the solver, without prefix or dash, e.g. "
+     "ksp_rtol=1e-8 or snes_monitor= (repeatable; -NAME VALUE with the dolfinx_invertible_ "
+     "prefix works too); checked before the run, and named at its end if no solver read it")),
+    ("--out", dict(type=Path, metavar="DIR", help="output directory (default: results/SCENE)")),
+    ("--quiet", dict(action="store_true", help="no progress bar")),
+    ("--verbose", dict(action="store_true", help="show compiler and solver chatter (FFCx, "
+     "cffi, numba warnings) and Python tracebacks")),
+    ("--format", dict(choices=list(OUTPUT_FORMATS), default="xdmf", dest="output_format",
+     help="what the run writes (default: xdmf): " + "; ".join(
+         f"{name}, {choice.description}" for name, choice in OUTPUT_FORMATS.items()))),
+    ("--checkpoint-every", dict(type=int, metavar="N", default=10, dest="checkpoint_every",
+     help="write DIR/CHECKPOINT every N steps and after the last one, to --resume "
+     "from (0: never; default: 10)")),
+    ("--resume", dict(type=Path, metavar="DIR", help="continue the stopped run in DIR from its "
+     "checkpoint, with its own parameters (--t-end may be later, --max-cuts may change), "
+     "appending to its output")),
+)  # fmt: skip
+
+
+def _run_options(subparser: argparse.ArgumentParser, scene) -> None:
+    """Add the options of a run (:data:`RUN_OPTIONS`) as the group "output"."""
+    group = subparser.add_argument_group("output")
+    for name, settings in RUN_OPTIONS:
+        group.add_argument(name, **{**settings, "help": _run_help(settings, scene.name)})
+
+
+def _run_help(settings: dict[str, Any], scene: str) -> str:
+    from dolfinx_invertible.scenes.checkpoints import CHECKPOINT_NAME
+
+    text = settings["help"].replace("SCENE", scene).replace("CHECKPOINT", CHECKPOINT_NAME)
+    return text.replace("%", "%%")
+
+
+def option_table() -> str:
+    """Return the Markdown table of every option of ``run SCENE`` (docs/scenes.md)."""
+    from dolfinx_invertible.scenes.parameters import option_table as parameter_table
+
+    rows = []
+    for name, settings in RUN_OPTIONS:
+        value = settings.get("metavar")
+        if "choices" in settings:
+            value = "{" + ",".join(settings["choices"]) + "}"
+        shown = f"`{name}{'' if value is None else ' ' + value}`"
+        rows.append(f"| {shown} | every scene | {_run_help(settings, 'SCENE')} |")
+    return "\n".join([parameter_table(), *rows])
 
 
 def _parameters(scene, arguments: argparse.Namespace):
@@ -363,7 +330,7 @@ def _run(arguments: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     _quiet_libraries(arguments.verbose)
     scene = get_scene(arguments.scene)
-    resume = getattr(arguments, "resume", None)
+    resume = arguments.resume
     try:
         if resume is not None:
             parameters, output = _resumed_parameters(scene, arguments), resume
@@ -374,7 +341,15 @@ def _run(arguments: argparse.Namespace) -> int:
         petsc.update(_named_options(arguments.petsc_option))
         _check_combination(parameters, petsc, comm)
         from dolfinx_invertible.scenes.runner import run_scene
+        from dolfinx_invertible.solvers.petsc_options import (
+            check_petsc_options,
+            unused_petsc_options,
+        )
 
+        solver_options = {
+            name[len(_PREFIX) :]: value for name, value in petsc.items() if name.startswith(_PREFIX)
+        }
+        check_petsc_options(solver_options, prefix=_PREFIX)
         summary = run_scene(
             scene,
             parameters,
@@ -382,7 +357,7 @@ def _run(arguments: argparse.Namespace) -> int:
             quiet=arguments.quiet or comm.rank != 0,
             petsc_options=_solver_options(petsc),
             comm=comm,
-            checkpoint_every=getattr(arguments, "checkpoint_every", 0) or None,
+            checkpoint_every=arguments.checkpoint_every or None,
             resume=resume is not None,
             output_format=arguments.output_format,
         )
@@ -397,8 +372,15 @@ def _run(arguments: argparse.Namespace) -> int:
             print(f"{scene.name}: {interrupt}; summary written to {output / 'summary.json'}",
                   file=sys.stderr)  # fmt: skip
         return 130
+    unused = unused_petsc_options(solver_options, prefix=_PREFIX, comm=comm)
     if comm.rank == 0:
         _print_summary(summary, output)
+        if unused:
+            print(
+                f"warning: no solver read the PETSc option {', '.join(unused)} (misspelt, or "
+                "not one this run's solvers take): it had no effect",
+                file=sys.stderr,
+            )
     return 0 if summary["completed"] else 1
 
 
@@ -434,6 +416,8 @@ def _check_combination(parameters, petsc: dict[str, str | None], comm) -> None:
 
 
 def _print_summary(summary: dict, output: Path) -> None:
+    from dolfinx_invertible.scenes.checkpoints import CHECKPOINT_NAME
+
     keys = ("outcome", "steps", "final_inverted", "max_inverted", "final_min_J")
     shown = ", ".join(f"{key} {summary.get(key)}" for key in keys if key in summary)
     extra = [key for key in ("rest_distance", "tip_displacement") if key in summary]
@@ -444,13 +428,19 @@ def _print_summary(summary: dict, output: Path) -> None:
     if summary.get("reason"):
         print(f"{summary['scene']}: {summary['reason']}")
     cut_out = summary.get("failed_stage") not in (None, "NaN")
-    if cut_out and (output / "checkpoint.npz").exists():
+    if cut_out and (output / CHECKPOINT_NAME).exists():
         more = summary["parameters"]["max_cuts"] + 4
         print(
             f"{summary['scene']}: to go on from t = {summary['time']:.6g} s with smaller steps: "
             f"dolfinx-invertible run {summary['scene']} --resume {output} --max-cuts {more}"
         )
     print(f"wrote {output}/ ({summary['scene']}.xdmf, {summary['scene']}.jsonl, summary.json)")
+
+
+def _paraview(arguments: argparse.Namespace) -> int:
+    from dolfinx_invertible.scenes import pictures
+
+    return pictures.command(arguments)
 
 
 def _report(arguments: argparse.Namespace) -> int:
@@ -461,18 +451,50 @@ def _report(arguments: argparse.Namespace) -> int:
 
 def parser() -> argparse.ArgumentParser:
     """Return the argument parser of the whole command line."""
-    from dolfinx_invertible.reports import REPORTS
-    from dolfinx_invertible.scenes import SCENES, get_scene
-
     top = argparse.ArgumentParser(
         prog="dolfinx-invertible",
         description="Invertible hyperelasticity for DOLFINx (Stomakhin et al. 2012).",
     )
     commands = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
     commands.add_parser(
         "list", help="list the scenes", description="List every scene with its paper figure."
     ).set_defaults(handler=_list)
+    _add_run(commands)
+    _add_reports(commands)
+    paraview_parser = commands.add_parser(
+        "paraview",
+        help="read or render a run's XDMF series with ParaView (pvbatch)",
+        description="Read or render ResultWriter XDMF series with ParaView (pvbatch).",
+    )
+    from dolfinx_invertible.scenes import pictures
+
+    pictures.add_arguments(paraview_parser)
+    paraview_parser.set_defaults(handler=_paraview)
+    commands.add_parser(
+        "compile",
+        help="compile the cell kernels into numba's disk cache",
+        description="Compile the DOLFINx cell kernels of the default materials (2D and 3D) "
+        "into numba's disk cache.",
+    ).set_defaults(handler=_compile)
+    benchmarks = _benchmarks()
+    bench_parser = commands.add_parser(
+        "bench",
+        help="run a benchmark",
+        description="Benchmarks; each prints a table and JSON.",
+        # Outside a checkout every bench command line, --help included, gets the one error.
+        add_help=benchmarks is not None,
+    )
+    if benchmarks is None:
+        bench_parser.add_argument("arguments", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+        bench_parser.set_defaults(handler=_no_benchmarks)
+    else:
+        benchmarks.add_arguments(bench_parser)
+    return top
+
+
+def _add_run(commands) -> None:
+    """Add ``run SCENE [options]``, one parser per scene with its defaults."""
+    from dolfinx_invertible.scenes import SCENES, get_scene
 
     run_parser = commands.add_parser(
         "run",
@@ -493,6 +515,11 @@ def parser() -> argparse.ArgumentParser:
         _scene_options(scene_parser, scene)
         scene_parser.set_defaults(handler=_run)
 
+
+def _add_reports(commands) -> None:
+    """Add ``report NAME [options]``, one parser per report."""
+    from dolfinx_invertible.reports import REPORTS
+
     report_parser = commands.add_parser("report", help="write a report", description="Reports.")
     reports = report_parser.add_subparsers(dest="report", required=True, metavar="NAME")
     for name, description in REPORTS.items():
@@ -504,31 +531,6 @@ def parser() -> argparse.ArgumentParser:
         subparser = reports.add_parser(name, help=described, description=described)
         module.add_arguments(subparser)
         subparser.set_defaults(handler=_report, report_module=module_name)
-
-    compile_parser = commands.add_parser(
-        "compile",
-        help="compile the cell kernels into numba's disk cache",
-        description=(
-            "Compile the DOLFINx cell kernels of the default materials (2D and 3D) into "
-            "numba's disk cache."
-        ),
-    )
-    compile_parser.set_defaults(handler=_compile)
-
-    benchmarks = _benchmarks()
-    bench_parser = commands.add_parser(
-        "bench",
-        help="run a benchmark",
-        description="Benchmarks; each prints a table and JSON.",
-        # Outside a checkout every bench command line, --help included, gets the one error.
-        add_help=benchmarks is not None,
-    )
-    if benchmarks is None:
-        bench_parser.add_argument("arguments", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
-        bench_parser.set_defaults(handler=_no_benchmarks)
-    else:
-        benchmarks.add_arguments(bench_parser)
-    return top
 
 
 def main(argv: Sequence[str] | None = None) -> int:

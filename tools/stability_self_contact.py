@@ -58,7 +58,7 @@ def main() -> int:
         parameters = Parameters(**values)
 
         def count(run, reached=reached):
-            reached.update(time=run.time, newton=run.newton_total)
+            reached.update(time=run.time, newton=run.statistics.newton_iterations["total"])
 
         signal.alarm(wall_limit)
         try:

@@ -39,6 +39,7 @@ from dolfinx_invertible.contact.barrier import (
 )
 from dolfinx_invertible.contact.friction import DEFAULT_FRICTION_VELOCITY
 from dolfinx_invertible.contact.surface import GatheredSurface
+from dolfinx_invertible.solvers.terms import StatefulTerm
 
 __all__ = ["BodyContactTerm", "SurfaceCollisionFreeStep", "SurfaceIntersectionError"]
 
@@ -119,13 +120,18 @@ def _collision_set() -> ipctk.NormalCollisions:
     return collisions
 
 
-class BodyContactTerm:
+class BodyContactTerm(StatefulTerm):
     """Frictionless contact between (and within) the bodies of one mesh, by IPC Toolkit.
 
     Pass it to :class:`~dolfinx_invertible.HyperelasticProblem` (or
     :class:`~dolfinx_invertible.ImplicitDynamics`) as ``terms=[term]`` together with
-    ``step_limits=[term.step_limit()]``. Call :meth:`check_intersection_free` before the
-    first solve: the barrier cannot start from surfaces that cross.
+    ``step_limits=[term.step_limit()]`` and, in time stepping, ``boundary_update=
+    term.start_step``. Call :meth:`check_intersection_free` before the first solve: the
+    barrier cannot start from surfaces that cross. A scene run does all of this itself (it is a
+    :class:`~dolfinx_invertible.solvers.terms.StatefulTerm`) and logs, at every stored step,
+    ``min_distance`` (the smallest distance between surface primitives; the summary's is the
+    smallest over the steps) and ``intersections`` (crossing surface facet pairs; the summary
+    sums them: 0 in a correct run).
 
     Parameters
     ----------
@@ -238,6 +244,9 @@ class BodyContactTerm:
         self._collisions = _collision_set()
         self._collisions_at: np.ndarray | None = None
         self._minimum_at: tuple[np.ndarray, float] | None = None
+        #: The smallest distance and the crossing pairs summed over the stored steps.
+        self.min_distance = math.inf
+        self.intersection_count = 0
         self._global_dofs = self.surface.global_dofs().astype(PETSc.IntType)
         owned = self.surface.owned
         self._facets_of_edges: np.ndarray | None = None
@@ -296,9 +305,33 @@ class BodyContactTerm:
                 self.potential = ipctk.BarrierPotential(self.distance, self.stiffness)
         self._last_minimum = minimum
 
+    def start_step(self, t: float) -> None:
+        """Start the step ending at ``t``: :meth:`set_time` (the stateful term's hook)."""
+        self.set_time(t)
+
+    def check_start(self) -> None:
+        """Refuse surfaces that cross or touch (:meth:`check_intersection_free`)."""
+        self.check_intersection_free()
+
+    def step_quantities(self) -> dict[str, float | int]:
+        """Return ``min_distance`` and ``intersections`` of the current state (collective)."""
+        figures = {"min_distance": self.minimum_distance(), "intersections": self.intersections()}
+        self.min_distance = min(self.min_distance, figures["min_distance"])
+        self.intersection_count += figures["intersections"]
+        return figures
+
+    def summary_quantities(self) -> dict[str, float | int]:
+        """Return the smallest distance over the stored steps and the crossings summed."""
+        return {"min_distance": self.min_distance, "intersections": self.intersection_count}
+
     def checkpoint_state(self) -> dict[str, float | None]:
         """Return what a restart needs besides the displacement: κ as adapted, its history."""
-        return {"stiffness": self.stiffness, "last_minimum": self._last_minimum}
+        return {
+            "stiffness": self.stiffness,
+            "last_minimum": self._last_minimum,
+            "min_distance": None if math.isinf(self.min_distance) else self.min_distance,
+            "intersections": self.intersection_count,
+        }
 
     def restore(self, state: dict[str, float | None]) -> None:
         """Continue from :meth:`checkpoint_state`."""
@@ -306,6 +339,9 @@ class BodyContactTerm:
         self.potential = ipctk.BarrierPotential(self.distance, self.stiffness)
         last = state["last_minimum"]
         self._last_minimum = None if last is None else float(last)
+        distance = state.get("min_distance")
+        self.min_distance = math.inf if distance is None else float(distance)
+        self.intersection_count = int(state.get("intersections", 0))
 
     def _slip(self, positions: np.ndarray) -> np.ndarray:
         return np.asfortranarray(positions - self._slip_origin)

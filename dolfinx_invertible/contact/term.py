@@ -31,6 +31,7 @@ from dolfinx_invertible.contact.obstacle import Obstacle
 from dolfinx_invertible.contact.obstacles import Obstacles
 from dolfinx_invertible.contact.potential import BarrierPotential
 from dolfinx_invertible.contact.step import CollisionFreeStep
+from dolfinx_invertible.solvers.terms import StatefulTerm
 
 __all__ = ["ContactTerm"]
 
@@ -39,13 +40,20 @@ __all__ = ["ContactTerm"]
 _SEPARATION_PASSES = 8
 
 
-class ContactTerm:
+class ContactTerm(StatefulTerm):
     """Frictionless contact of a body with rigid (possibly moving) obstacles, as a barrier.
 
     Pass it to :class:`~dolfinx_invertible.HyperelasticProblem` (or
     :class:`~dolfinx_invertible.ImplicitDynamics`) as ``terms=[term]`` together with
     ``step_limits=[term.step_limit()]``, the continuous collision detection that keeps every
-    Newton iterate outside the obstacles.
+    Newton iterate outside the obstacles, and, where the obstacles move or rub, with
+    ``boundary_update=term.start_step`` (a scene run does this itself: it is a
+    :class:`~dolfinx_invertible.solvers.terms.StatefulTerm`). Its step log and summary figures:
+    ``min_gap`` (the smallest gap of any boundary vertex, the summary's over the stored steps),
+    ``penetrations`` (boundary vertices on or inside an obstacle, summed over the stored steps:
+    0 in a correct run), ``contact_vertices`` (within d̂ of an obstacle; the summary's
+    ``max_contact_vertices`` is the most at one step), and the summary's ``barrier_distance``
+    and ``barrier_stiffness`` (d̂, κ).
 
     Parameters
     ----------
@@ -121,6 +129,9 @@ class ContactTerm:
         self.friction = ObstacleFriction(friction, friction_velocity) if friction > 0.0 else None
         self.time = float(time)
         self.set_time(time)
+        self.min_gap = math.inf
+        self.penetration_count = 0
+        self.max_contact_vertices = 0
 
     # -- state --------------------------------------------------------------------------------
     def set_time(self, t: float) -> None:
@@ -138,6 +149,51 @@ class ContactTerm:
                 self.positions(), self.boundary.weights, self.obstacles, self.barrier, self.time, t
             )
         self.time = t
+
+    def start_step(self, t: float) -> None:
+        """Move the obstacles to ``t`` (:meth:`set_time`), then the swept vertices out of them.
+
+        The :class:`~dolfinx_invertible.solvers.terms.StatefulTerm` hook: ``u`` holds the
+        attempt's initial guess, which :meth:`separate` may adjust.
+        """
+        self.set_time(t)
+        self.separate()
+
+    def step_quantities(self) -> dict[str, float | int]:
+        """Return ``min_gap``, ``penetrations`` and ``contact_vertices`` now (collective)."""
+        figures = {
+            "min_gap": self.minimum_gap(),
+            "penetrations": self.penetrations(),
+            "contact_vertices": self.active_vertices(),
+        }
+        self.min_gap = min(self.min_gap, figures["min_gap"])
+        self.penetration_count += figures["penetrations"]
+        self.max_contact_vertices = max(self.max_contact_vertices, figures["contact_vertices"])
+        return figures
+
+    def summary_quantities(self) -> dict[str, float | int]:
+        """Return the figures over the stored steps, and d̂ and κ."""
+        return {
+            "min_gap": self.min_gap,
+            "penetrations": self.penetration_count,
+            "barrier_distance": self.barrier.distance,
+            "barrier_stiffness": self.barrier.stiffness,
+            "max_contact_vertices": self.max_contact_vertices,
+        }
+
+    def checkpoint_state(self) -> dict[str, float | int | None]:
+        """Return the figures accumulated over the stored steps."""
+        return {
+            "min_gap": None if math.isinf(self.min_gap) else self.min_gap,
+            "penetrations": self.penetration_count,
+            "max_contact_vertices": self.max_contact_vertices,
+        }
+
+    def restore(self, state: dict[str, float | int | None]) -> None:
+        """Continue the figures from :meth:`checkpoint_state`."""
+        self.min_gap = math.inf if state["min_gap"] is None else float(state["min_gap"])
+        self.penetration_count = int(state["penetrations"])
+        self.max_contact_vertices = int(state["max_contact_vertices"])
 
     def positions(self) -> np.ndarray:
         """Return the current positions X + u of this rank's boundary vertices, (n, d)."""

@@ -117,6 +117,9 @@ class ResultWriter:
         The communicator; ``None`` means ``mesh.comm``, and any other must be congruent to it.
     log_path
         The JSON-lines step log; ``None`` means ``path`` with the suffix ``.jsonl``.
+    log
+        Keep the step log (the ``record`` of every :meth:`write`); ``False`` writes none (a
+        scene run keeps its log apart, :class:`~dolfinx_invertible.scenes.outputs.StepLogOutput`).
     resume
         ``(steps, time)``: continue the series of a run that was stopped, after its first
         ``steps`` steps, the last of them at ``time``; the steps after them are dropped from
@@ -140,6 +143,7 @@ class ResultWriter:
         comm: MPI.Comm | None = None,
         log_path: str | Path | None = None,
         resume: tuple[int, float] | None = None,
+        log: bool = True,
     ):
         self.path = Path(path)
         if self.path.suffix != ".xdmf":
@@ -192,8 +196,10 @@ class ResultWriter:
             self._on_rank_0(
                 lambda: self._adopt_mesh(mesh_xml), RuntimeError, f"could not write {mesh_xml}"
             )
-        self._log = StepLog(
-            self.log_path, self.comm, keep=None if resume is None else self.steps_written
+        self._log = (
+            StepLog(self.log_path, self.comm, keep=None if resume is None else self.steps_written)
+            if log
+            else None
         )
 
     def __enter__(self) -> ResultWriter:
@@ -260,7 +266,7 @@ class ResultWriter:
                     f"t must be finite and greater than the previous time {self._last_time}, "
                     f"got {t}"
                 )
-            line = self._log.format(self.steps_written, t, record)
+            line = None if self._log is None else self._log.format(self.steps_written, t, record)
             self._check_displacement(u)
         except (ValueError, TypeError) as exception:
             error = str(exception)
@@ -291,7 +297,8 @@ class ResultWriter:
 
         self._last_time = float(t)
         self.steps_written += 1
-        self._log.append(line)
+        if self._log is not None:
+            self._log.append(line)
 
     def _checked_diagnostics(self, diagnostics) -> dict[str, np.ndarray]:
         if diagnostics is None:

@@ -101,6 +101,15 @@ class BallHit(ContactScene):
         if run.time <= 2.0 * self.hit_time():
             self.inverted_during_hit = max(self.inverted_during_hit, inverted)
 
+    def checkpoint_state(self):
+        """Add the most inverted cells during the hit so far."""
+        return {**super().checkpoint_state(), "inverted_during_hit": self.inverted_during_hit}
+
+    def restore(self, state) -> None:
+        """Continue from :meth:`checkpoint_state`."""
+        super().restore(state)
+        self.inverted_during_hit = int(state["inverted_during_hit"])
+
     def quantities(self, run):
         """Add the time the ball is lowest, the time it is back up, and the inverted cells then."""
         return {

@@ -1,15 +1,19 @@
 """Checkpoints of a scene run, and continuing a stopped run from its last one.
 
-A dynamic scene's run writes ``checkpoint.npz`` into its output directory every N steps and
-after its last step (:func:`write_run_checkpoint`): the displacement and velocity of the current
-and the previous step (BDF2 needs both), the time, the step controller's state, whether the
-solver escalated, the run's counts, the scene's own scalar state (contact statistics, say),
-the parameters and the number of steps written. ``run SCENE --resume DIR`` builds the same run,
-reads the checkpoint into it (:func:`restore_run`, on any number of ranks), truncates the XDMF
-file and the step log to the checkpoint's step and goes on from there. After every step each
-rank also writes its part of the state, with no communication (:class:`StepParts`), so a run
-killed at any instant, or stopped by a signal, continues from its last completed step;
-resuming takes whichever is newer (:func:`latest_checkpoint`).
+A scene's run writes ``checkpoint.npz`` into its output directory every N steps and after its
+last step (:func:`write_run_checkpoint`, attached as
+:class:`~dolfinx_invertible.scenes.outputs.CheckpointOutput`). The state is assembled from the
+run's parts, each giving its own: the stepper's Functions and state (the integrator's history
+of a dynamic scene, the last converged solution of load steps; the time, the step controller,
+whether the solver escalated), the run's statistics, the scene's own
+(:meth:`~dolfinx_invertible.scenes.Scene.checkpoint_state`) and each stateful term's
+(:meth:`~dolfinx_invertible.solvers.terms.StatefulTerm.checkpoint_state`), with the parameters
+and the number of states stored. ``run SCENE --resume DIR`` builds the same run, reads the
+checkpoint into it (:func:`restore_run`, on any number of ranks), truncates the XDMF file and
+the step log to the checkpoint's step and goes on from there. After every step each rank also
+writes its part of the state, with no communication (:class:`StepParts`), so a run killed at
+any instant, or stopped by a signal, continues from its last completed step; resuming takes
+whichever is newer (:func:`latest_checkpoint`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from dolfinx_invertible.io.checkpoint import (
 )
 from dolfinx_invertible.scenes.parameters import Parameters
 from dolfinx_invertible.scenes.run import Run
+from dolfinx_invertible.scenes.statistics import RunStatistics
 
 __all__ = [
     "CHECKPOINT_NAME",
@@ -42,42 +47,28 @@ __all__ = [
 #: The checkpoint's file name in a run's output directory.
 CHECKPOINT_NAME = "checkpoint.npz"
 #: Version of the state layout; a checkpoint of another version is refused.
-_VERSION = 1
-_COUNTS = ("steps", "newton_total", "newton_max", "linear_total", "max_inverted", "min_J",
-           "nan_encountered", "svd_points", "time", "min_distance", "intersections")  # fmt: skip
+_VERSION = 2
 
 
-def _scene_state(scene) -> dict[str, Any]:
-    """Return the scene's scalar attributes: what its hooks accumulate over the steps."""
-    return {
-        name: value
-        for name, value in vars(scene).items()
-        if isinstance(value, (bool, int, float, str)) and name not in ("comm",)
-    }
-
-
-def _run_state(run: Run, steps_written: int) -> dict[str, Any]:
+def _run_state(run: Run) -> dict[str, Any]:
     return {
         "version": _VERSION,
         "scene": run.scene.name,
         "parameters": run.parameters.as_dict(),
         "ranks": run.mesh.comm.size,
-        "steps_written": steps_written,
-        "dynamics": run.dynamics.checkpoint_state(),
-        "run": {name: getattr(run, name) for name in _COUNTS},
+        "steps_written": run.stored,
+        "stepper": run.stepper.checkpoint_state(),
+        "statistics": run.statistics.state(),
         "elapsed": perf_counter() - run.started,
-        "scene_state": _scene_state(run.scene),
-        "body_contact": (None if run.body_contact is None else run.body_contact.checkpoint_state()),
+        "scene_state": run.scene.checkpoint_state(),
+        "terms": [term.checkpoint_state() for term in run.terms],
     }
 
 
-def write_run_checkpoint(run: Run, output: Path, steps_written: int) -> int:
+def write_run_checkpoint(run: Run, output: Path) -> int:
     """Write the run's checkpoint into ``output`` (collective); return its size in bytes."""
     return write_checkpoint(
-        output / CHECKPOINT_NAME,
-        run.dynamics.checkpoint_fields(),
-        _run_state(run, steps_written),
-        run.mesh.comm,
+        output / CHECKPOINT_NAME, run.stepper.checkpoint_fields(), _run_state(run), run.mesh.comm
     )
 
 
@@ -98,10 +89,10 @@ class StepParts:
         self.output, self.rank, self.size = output, rank, size
         self._coordinates: dict[str, Any] = {}
 
-    def write(self, run: Run, steps_written: int) -> None:
+    def write(self, run: Run) -> None:
         """Write this rank's part of the state after the step (at a step boundary)."""
         nodes = {}
-        for name, function in run.dynamics.checkpoint_fields().items():
+        for name, function in run.stepper.checkpoint_fields().items():
             if name not in self._coordinates:
                 # The nodes do not move: tabulated once, not at every step.
                 self._coordinates[name] = owned_nodes(function)[0].copy()
@@ -109,8 +100,8 @@ class StepParts:
             block = function.function_space.dofmap.index_map_bs
             values = function.x.array[: len(coordinates) * block].reshape(-1, block)
             nodes[name] = (coordinates, values)
-        path = self.output / _part_name(self.rank, self.size, steps_written % 2)
-        write_checkpoint_part(path, nodes, _run_state(run, steps_written), sync=False)
+        path = self.output / _part_name(self.rank, self.size, run.stored % 2)
+        write_checkpoint_part(path, nodes, _run_state(run), sync=False)
 
 
 def _part_name(rank: int, size: int, generation: int) -> str:
@@ -157,15 +148,14 @@ def latest_checkpoint(output: Path) -> tuple[list[Path], dict[str, Any]]:
 MAY_CHANGE_ON_RESUME = ("t_end", "t_stop", "max_cuts")
 
 
-def check_resumable(
-    output: Path, scene_name: str, parameters: Parameters, *, timed_by_end: bool = False
-) -> dict[str, Any]:
+def check_resumable(output: Path, scene_class, parameters: Parameters) -> dict[str, Any]:
     """Return the state of the checkpoint in ``output``; ``ValueError`` if it cannot continue.
 
     The run must be the same scene with the same parameters, except where it stops: ``t_end``
     may grow (unless the scene's loading is ``timed_by_end``), and ``t_stop`` may change; so may
     ``max_cuts``, to continue a run whose cuts ran out with a larger budget.
     """
+    scene_name = scene_class.name
     _, state = latest_checkpoint(output)
     if state.get("version") != _VERSION:
         raise ValueError(f"{output / CHECKPOINT_NAME}: a checkpoint of another version")
@@ -185,15 +175,16 @@ def check_resumable(
                 for name in differing
             )  # fmt: skip
         )
-    if timed_by_end and parameters.t_end != state["parameters"]["t_end"]:
+    if scene_class.timed_by_end and parameters.t_end != state["parameters"]["t_end"]:
         raise ValueError(
             f"--t-end {parameters.t_end:g}: the {scene_name} scene's loading is timed by the end "
             f"time of its run ({state['parameters']['t_end']:g} s), which a resumed run keeps"
         )
-    if not parameters.stop_time > state["dynamics"]["time"]:
+    end, reached = scene_class.end_time(parameters), state["stepper"]["time"]
+    if not end > reached:
         raise ValueError(
-            f"stopping at t = {parameters.stop_time:g} (--t-end, --steps): the run in {output} "
-            f"is at t = {state['dynamics']['time']:g} already"
+            f"stopping at t = {end:g} (--t-end, --steps): the run in {output} is at "
+            f"t = {reached:g} already"
         )
     return state
 
@@ -201,14 +192,13 @@ def check_resumable(
 def restore_run(run: Run, output: Path) -> dict[str, Any]:
     """Set the built run to its checkpoint in ``output`` (collective); return the state."""
     files, _ = latest_checkpoint(output)
-    state = read_checkpoint(files, run.dynamics.checkpoint_fields(), run.mesh.comm)
-    run.dynamics.restore(state["dynamics"])
-    for name in _COUNTS:
-        if name in state["run"]:
-            setattr(run, name, state["run"][name])
+    state = read_checkpoint(files, run.stepper.checkpoint_fields(), run.mesh.comm)
+    run.stepper.restore(state["stepper"])
+    run.statistics = RunStatistics.from_state(state["statistics"])
+    run.stored = int(state["steps_written"])
+    run.resumed = True
     run.started = perf_counter() - state["elapsed"]
-    for name, value in state["scene_state"].items():
-        setattr(run.scene, name, value)
-    if run.body_contact is not None and state.get("body_contact") is not None:
-        run.body_contact.restore(state["body_contact"])
+    run.scene.restore(state["scene_state"])
+    for term, term_state in zip(run.terms, state["terms"], strict=True):
+        term.restore(term_state)
     return state

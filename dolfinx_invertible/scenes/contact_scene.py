@@ -2,18 +2,16 @@
 
 A :class:`ContactScene` declares its rigid obstacles (:meth:`ContactScene.obstacles`); the base
 class turns them into the frictionless IPC barrier
-(:class:`~dolfinx_invertible.contact.ContactTerm`, through the ``terms`` hook), its continuous
-collision detection (the ``step_limits`` hook), and a boundary update that sets the obstacles'
-time before every solve attempt and moves boundary vertices that a moving obstacle swept over
-back out of it (:meth:`~dolfinx_invertible.contact.ContactTerm.separate`). After every accepted
-step it records the smallest gap, the number of boundary vertices inside an obstacle (must stay
-0), the vertices in contact, the body's centre and its kinetic energy; the summary gets
+(:class:`~dolfinx_invertible.contact.ContactTerm`, through the ``terms`` hook) and its
+continuous collision detection (the ``step_limits`` hook). The term is a
+:class:`~dolfinx_invertible.solvers.terms.StatefulTerm`: the run sets the obstacles' time before
+every solve attempt, moving boundary vertices that a moving obstacle swept over back out of it
+(:meth:`~dolfinx_invertible.contact.ContactTerm.start_step`), and logs the smallest gap, the
+boundary vertices inside an obstacle (must stay 0) and those in contact at every stored step;
+the summary gets them over the run (``min_gap``, ``penetrations``, ``max_contact_vertices``)
+with d̂ and κ (``barrier_distance``, ``barrier_stiffness``). After every accepted step the scene
+records the body's centre and its kinetic energy; the summary also gets
 
-- ``min_gap``: the smallest gap of any boundary vertex to any obstacle over all stored steps;
-- ``penetrations``: boundary vertices found on or inside an obstacle, summed over the stored
-  steps (0 in a correct run);
-- ``barrier_distance``, ``barrier_stiffness``: d̂ and κ of the barrier;
-- ``max_contact_vertices``: the most boundary vertices within d̂ of an obstacle at one step;
 - ``final_centre``, ``final_low``, ``final_high``: the mean position of the body's nodes and
   the corners of its bounding box at the end;
 - ``rest_distance``: how far the final shape is from the rest shape after the best rigid
@@ -27,7 +25,6 @@ centre (d entries) and kinetic energy.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from mpi4py import MPI
@@ -62,9 +59,6 @@ class ContactScene(Scene):
         super().__init__(parameters, comm)
         self.contact: ContactTerm | None = None
         self.history: list[list[float]] = []
-        self.min_gap = math.inf
-        self.penetrations = 0
-        self.max_contact_vertices = 0
         self.peak_kinetic_energy = 0.0
         self._coordinates: np.ndarray | None = None
 
@@ -74,19 +68,8 @@ class ContactScene(Scene):
         raise NotImplementedError
 
     # -- hooks ------------------------------------------------------------------------------
-    def boundary_conditions(self, space):
-        """No Dirichlet conditions; the update moves the obstacles to the attempt's time."""
-
-        def update(t: float) -> None:
-            # Called with u at the attempt's initial guess: separate() may then move the
-            # vertices that a moving obstacle swept over out of it.
-            self.contact.set_time(t)
-            self.contact.separate()
-
-        return [], update
-
     def terms(self, u) -> list:
-        """Return the contact barrier on ``u``."""
+        """Return the contact barrier on ``u``, then the scene's other terms."""
         self.contact = ContactTerm(
             u,
             self.obstacles(),
@@ -94,33 +77,32 @@ class ContactScene(Scene):
             friction=self.parameters.friction,
             friction_velocity=self.parameters.friction_velocity,
         )
-        return [self.contact]
+        return [self.contact, *super().terms(u)]
 
     def step_limits(self, u) -> list:
-        """Return the continuous collision detection of the contact term."""
-        return [self.contact.step_limit()]
+        """Return the continuous collision detection of the contact term, then the others."""
+        return [self.contact.step_limit(), *super().step_limits(u)]
 
     def record(self, run) -> None:
-        """Record gap, penetrations, contact, centre and kinetic energy of the stored step."""
-        contact = self.contact
-        gap = contact.minimum_gap()
-        active = contact.active_vertices()
+        """Record gap, contact, centre and kinetic energy of the stored step."""
         kinetic = run.kinetic_energy or 0.0
-        self.min_gap = min(self.min_gap, gap)
-        self.penetrations += contact.penetrations()
-        self.max_contact_vertices = max(self.max_contact_vertices, active)
         self.peak_kinetic_energy = max(self.peak_kinetic_energy, kinetic)
+        gap, active = run.record["min_gap"], run.record["contact_vertices"]
         self.history.append([run.time, gap, active, *self.centre(run.u), kinetic])
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """Return the per-step record and the peak kinetic energy."""
+        return {"history": self.history, "peak_kinetic_energy": self.peak_kinetic_energy}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue the record from :meth:`checkpoint_state`."""
+        self.history = [list(row) for row in state["history"]]
+        self.peak_kinetic_energy = float(state["peak_kinetic_energy"])
 
     def quantities(self, run) -> dict[str, Any]:
         """Return the contact figures of the run (see the module description)."""
         low, high = bounding_box(self.node_positions(run.u), self.comm)
         return {
-            "min_gap": self.min_gap,
-            "penetrations": self.penetrations,
-            "barrier_distance": self.contact.barrier.distance,
-            "barrier_stiffness": self.contact.barrier.stiffness,
-            "max_contact_vertices": self.max_contact_vertices,
             "final_centre": self.centre(run.u).tolist(),
             "final_low": low.tolist(),
             "final_high": high.tolist(),

@@ -3,44 +3,55 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from time import perf_counter
 from typing import Any
 
 from dolfinx_invertible.scenes.parameters import Parameters
 from dolfinx_invertible.scenes.scene import Scene
-from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
-from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem
+from dolfinx_invertible.scenes.statistics import RunStatistics
 from dolfinx_invertible.solvers.results import SolveResult
-from dolfinx_invertible.solvers.stepping import StepController
+from dolfinx_invertible.solvers.stepper import Stepper
 
 __all__ = ["Run"]
 
 
 @dataclasses.dataclass
 class Run:
-    """The state of a scene run, as the scene's hooks see it after every step.
+    """The state of a scene run, as the scene's hooks and the observers see it.
 
     Attributes
     ----------
     scene, parameters, material, mesh, u
         What runs.
-    time
-        Time (dynamic) or pseudo-time (quasi-static) of the last completed step.
+    stepper
+        The :class:`~dolfinx_invertible.solvers.stepper.Stepper` that advances it: an
+        :class:`~dolfinx_invertible.ImplicitDynamics` (dynamic scenes) or a
+        :class:`~dolfinx_invertible.solvers.quasi_static.QuasiStatic` (load steps).
+    terms
+        The scene's :class:`~dolfinx_invertible.solvers.terms.StatefulTerm` energy terms (its
+        contact, say), which the run drives.
+    statistics
+        The :class:`~dolfinx_invertible.scenes.statistics.RunStatistics` so far.
     result
         The last step's :class:`~dolfinx_invertible.SolveResult` (None at t = 0).
     diagnostics
-        Global counts of the last completed step (:func:`~dolfinx_invertible.summary`).
-    dynamics, problem
-        The stepping object (one of them is None).
-    controller
-        The step controller (of the dynamics, or of the load steps).
-    body_contact
-        The :class:`~dolfinx_invertible.contact.BodyContactTerm` between the surfaces of the
-        bodies (``--self-contact``, several bodies), or None.
-    min_distance, intersections
-        With ``body_contact``: the smallest distance between surface primitives and the
-        crossing surface facet pairs summed over the stored steps.
+        Global counts of the last stored state (:func:`~dolfinx_invertible.summary`).
+    cell_values
+        Per-cell diagnostics of the last stored state on this rank's owned cells
+        (:func:`~dolfinx_invertible.cell_diagnostics`), as the outputs write them.
+    record
+        The step-log record of the last stored state: the diagnostics, the step's solver
+        counts, the terms' figures, the wall time.
+    stored
+        States stored so far (the initial one and every accepted step; a continued run counts
+        its first run's).
+    resumed
+        Whether the run continues a stopped one from its checkpoint.
+    started
+        ``perf_counter()`` when the run started (shifted back by a continued run's time).
+    completed, failure
+        Whether the stepping reached its end; why it stopped otherwise (``reason``,
+        ``failed_stage``, ``failed_time``).
     """
 
     scene: Scene
@@ -48,32 +59,68 @@ class Run:
     material: Any
     mesh: Any
     u: Any
-    time: float = 0.0
+    stepper: Stepper
+    terms: list = dataclasses.field(default_factory=list)
+    statistics: RunStatistics = dataclasses.field(default_factory=RunStatistics)
     result: SolveResult | None = None
     diagnostics: dict[str, Any] = dataclasses.field(default_factory=dict)
-    dynamics: ImplicitDynamics | None = None
-    problem: HyperelasticProblem | None = None
-    controller: StepController | None = None
-    body_contact: Any = None
-    steps: int = 0
-    newton_total: int = 0
-    newton_max: int = 0
-    linear_total: int = 0
-    max_inverted: int = 0
-    min_J: float = math.inf  # noqa: N815 (the notation: J = det F)
-    nan_encountered: bool = False
-    min_distance: float = math.inf
-    intersections: int = 0
-    svd_points: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    cell_values: dict[str, Any] = dataclasses.field(default_factory=dict)
+    record: dict[str, Any] = dataclasses.field(default_factory=dict)
+    stored: int = 0
+    resumed: bool = False
     started: float = dataclasses.field(default_factory=perf_counter)
+    completed: bool = False
+    failure: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+    def store(self, result: SolveResult | None) -> None:
+        """Record the current state (collective): diagnostics, statistics, the step's record.
+
+        ``result`` is the accepted step's solve, None for the initial state. The record holds
+        the global diagnostics, the step's solver counts and size, the kinetic energy (dynamic
+        scenes), each stateful term's figures and the wall time so far.
+        """
+        from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
+
+        self.result = result
+        self.cell_values = cell_diagnostics(self.u, self.material)
+        self.diagnostics = summary(self.cell_values, self.mesh.comm)
+        self.statistics.add_state(self.diagnostics)
+        record = dict(self.diagnostics)
+        if result is not None:
+            self.statistics.add_step(result)
+            record.update(
+                energy=result.energy,
+                newton_iterations=result.newton_iterations,
+                linear_iterations=result.linear_iterations,
+                tangent=result.tangent,
+                svd_share=result.svd_share,
+                step_size=self.controller.accepted[-1],
+            )
+        kinetic = self.kinetic_energy
+        if kinetic is not None:
+            record["kinetic_energy"] = kinetic
+        for term in self.terms:
+            record.update(term.step_quantities())
+        record["wall_time"] = perf_counter() - self.started
+        self.record = record
+        self.stored += 1
+
+    @property
+    def time(self) -> float:
+        """Time (dynamic) or pseudo-time (quasi-static) of the current state."""
+        return self.stepper.time
+
+    @property
+    def controller(self):
+        """The stepper's :class:`~dolfinx_invertible.StepController`."""
+        return self.stepper.controller
 
     @property
     def minimizer(self):
         """The :class:`~dolfinx_invertible.EnergyMinimizer` that solves every step."""
-        stepper = self.dynamics.problem if self.dynamics is not None else self.problem
-        return stepper.solver
+        return self.stepper.solver
 
     @property
     def kinetic_energy(self) -> float | None:
-        """Kinetic energy of the current state (dynamic scenes, collective)."""
-        return None if self.dynamics is None else self.dynamics.kinetic_energy
+        """Kinetic energy of the current state (collective); None without mass."""
+        return self.stepper.kinetic_energy

@@ -58,7 +58,7 @@ class Scene:
         (contact between surfaces, several bodies or ``--self-contact``, takes it too).
     several_bodies
         Whether the scene is made of ``count`` bodies (``--count N``) in contact with each
-        other: :meth:`body_contact` is always on.
+        other: :meth:`surface_contact` is always on.
     self_contact_refusal
         Why a scene refuses ``--self-contact`` where a user may expect it (the error says so).
 
@@ -89,6 +89,7 @@ class Scene:
         self.comm = comm
         #: The mesh :meth:`create_mesh` made (set by the runner before the other hooks).
         self.mesh = None
+        self._surface_contact = None
 
     @classmethod
     def check_parameters(cls, parameters: Parameters) -> None:
@@ -158,37 +159,55 @@ class Scene:
     def set_load(self, t: float) -> None:
         """Set loads for pseudo-time t in [0, 1] (quasi-static scenes)."""
 
+    @classmethod
+    def end_time(cls, parameters: Parameters) -> float:
+        """Return where a run stops: ``parameters.stop_time`` (dynamic) or pseudo-time 1."""
+        return parameters.stop_time if cls.dynamic else 1.0
+
     def gravity(self) -> Sequence[float] | None:
         """Return the body acceleration g, or None (dynamic scenes)."""
         return None
 
     def terms(self, u) -> list:
-        """Return energy terms that are not forms (e.g. contact barriers), built on ``u``."""
-        return []
+        """Return energy terms that are not forms (e.g. contact barriers), built on ``u``.
+
+        A term that is a :class:`~dolfinx_invertible.solvers.terms.StatefulTerm` is driven by
+        the run: its time update before every attempt, its start-up check, its figures in the
+        step log and the summary, its state in the checkpoint. By default the contact between
+        the bodies' surfaces (:meth:`surface_contact`) where the scene has it; a subclass that
+        adds terms of its own extends this list.
+        """
+        contact = self.surface_contact(u)
+        return [] if contact is None else [contact]
 
     def step_limits(self, u) -> list:
-        """Return step caps (e.g. continuous collision detection), built on ``u``."""
-        return []
+        """Return step caps (e.g. continuous collision detection), built on ``u``.
 
-    def body_contact(self, u):
-        """Return the contact between the bodies' surfaces, or None.
+        Called after :meth:`terms`; by default the cap of the surface contact, if any.
+        """
+        contact = self.surface_contact(u)
+        return [] if contact is None else [contact.step_limit()]
 
-        With ``--self-contact``: a :class:`~dolfinx_invertible.contact.BodyContactTerm` on
-        ``u`` whose barrier stiffness follows the run's Young's modulus. A scene of several
-        bodies returns one always. The runner adds it to the problem with its step cap, checks
-        that the surfaces do not intersect at the start, and records ``min_distance`` and
-        ``intersections`` at every stored step.
+    def surface_contact(self, u):
+        """Return the contact between the bodies' surfaces on ``u`` (made once), or None.
+
+        With ``--self-contact``, or always in a scene of several bodies: a
+        :class:`~dolfinx_invertible.contact.BodyContactTerm` whose barrier stiffness follows
+        the run's Young's modulus; it refuses surfaces that cross at the start and logs
+        ``min_distance`` and ``intersections`` at every stored step.
         """
         if not (self.parameters.self_contact or self.several_bodies):
             return None
-        from dolfinx_invertible.contact import BodyContactTerm
+        if self._surface_contact is None:
+            from dolfinx_invertible.contact import BodyContactTerm
 
-        return BodyContactTerm(
-            u,
-            youngs_modulus=self.parameters.E,
-            friction=self.parameters.friction,
-            friction_velocity=self.parameters.friction_velocity,
-        )
+            self._surface_contact = BodyContactTerm(
+                u,
+                youngs_modulus=self.parameters.E,
+                friction=self.parameters.friction,
+                friction_velocity=self.parameters.friction_velocity,
+            )
+        return self._surface_contact
 
     def drawn_obstacles(self) -> list:
         """Return what pictures draw beside the body: objects with ``gap(x, t)``.
@@ -205,6 +224,17 @@ class Scene:
 
     def record(self, run) -> None:
         """Look at the :class:`~.run.Run` after every accepted step (e.g. to sample it)."""
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """Return what :meth:`record` accumulated that the summary reads, as JSON values.
+
+        A continued run (``--resume``) gives it back to :meth:`restore`; a scene whose
+        quantities come from the state alone has none.
+        """
+        return {}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`checkpoint_state`."""
 
     def quantities(self, run) -> dict[str, Any]:
         """Return the scene's own summary values at the end (collective)."""

@@ -56,15 +56,26 @@ class TwistingColumn(Scene):
         return velocity
 
     def _elastic_energy(self, run) -> float:
-        forms = run.dynamics.problem.forms
+        forms = run.stepper.problem.forms
         local = dolfinx.fem.assemble_scalar(forms.energy)
         return run.mesh.comm.allreduce(local, op=MPI.SUM)
 
+    def __init__(self, parameters, comm):
+        super().__init__(parameters, comm)
+        #: (time, kinetic, elastic) of every stored step.
+        self.history: list[tuple[float, float, float]] = []
+
     def record(self, run) -> None:
         """Record kinetic and elastic energy."""
-        if not hasattr(self, "history"):
-            self.history: list[tuple[float, float, float]] = []
         self.history.append((run.time, run.kinetic_energy, self._elastic_energy(run)))
+
+    def checkpoint_state(self) -> dict:
+        """Return the energy history (its first entry is the initial energy)."""
+        return {"history": [list(entry) for entry in self.history]}
+
+    def restore(self, state: dict) -> None:
+        """Continue the energy history from :meth:`checkpoint_state`."""
+        self.history = [tuple(entry) for entry in state["history"]]
 
     def quantities(self, run) -> dict:
         """Return the total energy at the start and the end, and the relative loss."""

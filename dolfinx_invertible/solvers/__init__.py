@@ -12,11 +12,14 @@
 - :mod:`.nullspace`: rigid-body modes for algebraic multigrid;
 - :mod:`.results`: :class:`SolveResult` and :class:`SolverError`;
 - :mod:`.hyperelastic`: :class:`HyperelasticProblem`, material + boundary conditions + UFL terms;
-- :mod:`.stepping`: the step controller (cut on failure, grow after easy steps) and
-  quasi-static load steps;
-- :mod:`.step_limit`: step caps, the inversion-free one among them;
-- :mod:`.integrators`: backward Euler and BDF2 as incremental potentials;
-- :mod:`.dynamics`: implicit time stepping.
+- :mod:`.terms`: :class:`StatefulTerm`, energy terms with time and state of their own;
+- :mod:`.stepping`: the step controller (cut on failure, grow after easy steps);
+- :mod:`.stepper`: :class:`Stepper`, the one protocol of load steps and time steps;
+- :mod:`.quasi_static`: :class:`QuasiStatic`, load steps (and :func:`solve_load_steps`);
+- :mod:`.dynamics`: :class:`ImplicitDynamics`, implicit time stepping;
+- :mod:`.integrators`: backward Euler, BDF2 and Newmark as incremental potentials, one module
+  each;
+- :mod:`.step_limit`: step caps, the inversion-free one among them.
 """
 
 # The PyPI DOLFINx wheel finds its MPI library only once mpi4py has loaded it: mpi4py first.
@@ -24,7 +27,13 @@ from mpi4py import MPI  # noqa: F401
 
 from dolfinx_invertible.solvers.dynamics import ImplicitDynamics
 from dolfinx_invertible.solvers.hyperelastic import HyperelasticProblem, external_forms
-from dolfinx_invertible.solvers.integrators import BDF2, INTEGRATORS, BackwardEuler
+from dolfinx_invertible.solvers.integrators import (
+    BDF2,
+    INTEGRATORS,
+    BackwardEuler,
+    Integrator,
+    Newmark,
+)
 from dolfinx_invertible.solvers.minimizer import EnergyMinimizer
 from dolfinx_invertible.solvers.monitors import (
     DIRECTION_KINDS,
@@ -39,6 +48,7 @@ from dolfinx_invertible.solvers.options import (
     DIRECT_SOLVE_LIMIT,
 )
 from dolfinx_invertible.solvers.problem import EnergyProblem, EnergyTerm
+from dolfinx_invertible.solvers.quasi_static import QuasiStatic, solve_load_steps
 from dolfinx_invertible.solvers.results import (
     STAGES,
     SolverError,
@@ -47,13 +57,10 @@ from dolfinx_invertible.solvers.results import (
     snes_reason_name,
 )
 from dolfinx_invertible.solvers.step_limit import InversionFreeStep, StepLimit, volume_polynomial
-from dolfinx_invertible.solvers.stepping import (
-    Solvable,
-    StepController,
-    solve_load_steps,
-    take_step,
-)
-from dolfinx_invertible.solvers.trust_region import GLOBALIZATIONS, TrustRegion
+from dolfinx_invertible.solvers.stepper import Stepper
+from dolfinx_invertible.solvers.stepping import Solvable, StepController, take_step
+from dolfinx_invertible.solvers.terms import StatefulTerm
+from dolfinx_invertible.solvers.trust_region import TrustRegion
 
 __all__ = [
     "BDF2",
@@ -61,7 +68,6 @@ __all__ = [
     "DEFAULT_PETSC_OPTIONS",
     "DIRECTION_KINDS",
     "DIRECT_SOLVE_LIMIT",
-    "GLOBALIZATIONS",
     "INTEGRATORS",
     "STAGES",
     "BackwardEuler",
@@ -70,8 +76,11 @@ __all__ = [
     "EnergyTerm",
     "HyperelasticProblem",
     "ImplicitDynamics",
+    "Integrator",
     "InversionFreeStep",
     "NewtonIteration",
+    "Newmark",
+    "QuasiStatic",
     "Solvable",
     "SolveResult",
     "SolverError",
@@ -79,6 +88,8 @@ __all__ = [
     "StepCap",
     "StepController",
     "StepLimit",
+    "Stepper",
+    "StatefulTerm",
     "TrustRegion",
     "external_forms",
     "ksp_reason_name",

@@ -12,6 +12,7 @@ import dolfinx
 import numpy as np
 import ufl
 
+from dolfinx_invertible.choices import ELASTIC_ROUTES, TANGENTS
 from dolfinx_invertible.constitutive.material import Material
 from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
 from dolfinx_invertible.fem.forms import HyperelasticForms
@@ -122,10 +123,10 @@ class HyperelasticProblem:
         globalization: str = "auto",
     ):
         mesh = u.function_space.mesh
-        if project not in (True, False, "auto"):
-            raise ValueError(f"project must be True, False or 'auto', got {project!r}")
-        if elastic not in ("kernels", "ufl"):
-            raise ValueError(f"elastic must be 'kernels' or 'ufl', got {elastic!r}")
+        allowed = [choice.value for choice in TANGENTS.values()]
+        if project not in allowed:
+            raise ValueError(f"project must be one of {allowed}, got {project!r}")
+        ELASTIC_ROUTES.check(elastic)
         if elastic == "ufl":
             if project is True:
                 raise ValueError("DOLFINx's own route (elastic='ufl') has no projected tangent")

@@ -19,6 +19,7 @@ from typing import Any
 from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.choices import GLOBALIZATIONS
 from dolfinx_invertible.solvers.convergence import ConvergenceTest, ScaledTolerances
 from dolfinx_invertible.solvers.directions import NewtonDirections
 from dolfinx_invertible.solvers.line_search import EnergyLineSearch, SearchStop
@@ -27,7 +28,7 @@ from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX, Minimizer
 from dolfinx_invertible.solvers.problem import EnergyProblem
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.step_limit import StepLimit
-from dolfinx_invertible.solvers.trust_region import GLOBALIZATIONS, TrustRegion
+from dolfinx_invertible.solvers.trust_region import TrustRegion
 
 __all__ = ["EnergyMinimizer"]
 
@@ -164,10 +165,7 @@ class EnergyMinimizer:
         blend_after: int | None = None,
         globalization: str = "auto",
     ) -> None:
-        if globalization not in GLOBALIZATIONS:
-            raise ValueError(
-                f"globalization must be one of {GLOBALIZATIONS}, got {globalization!r}"
-            )
+        GLOBALIZATIONS.check(globalization)
         self.problem = problem
         self.u = problem.u
         self.step_limits = tuple(step_limits)

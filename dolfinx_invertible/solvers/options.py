@@ -14,14 +14,15 @@ from typing import Any
 
 from petsc4py import PETSc
 
+from dolfinx_invertible.choices import LINEAR_SOLVERS
+from dolfinx_invertible.solvers.petsc_options import options_in_database
+
 __all__ = [
     "DEFAULT_OPTIONS_PREFIX",
     "DEFAULT_PETSC_OPTIONS",
     "DIRECT_SOLVE_LIMIT",
-    "LINEAR_SOLVERS",
     "MinimizerOptions",
     "linear_solver_options",
-    "options_in_database",
 ]
 
 DEFAULT_OPTIONS_PREFIX = "dolfinx_invertible_"
@@ -39,9 +40,6 @@ DEFAULT_PETSC_OPTIONS: dict[str, Any] = {
     "snes_max_it": 50,
     "snes_max_linear_solve_fail": 1_000_000,
 }
-
-#: ``linear_solver`` choices of the minimiser.
-LINEAR_SOLVERS = ("auto", "direct", "iterative")
 
 #: Global number of unknowns up to which ``linear_solver="auto"`` factorises (3D; 2D allows 4×).
 #: Measured on the collapsed cube, 2 ranks (docs/performance.md, "Scale"): at 2 187 unknowns a
@@ -82,8 +80,7 @@ def linear_solver_options(
     comm_size
         Number of MPI ranks.
     """
-    if linear_solver not in LINEAR_SOLVERS:
-        raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
+    LINEAR_SOLVERS.check(linear_solver)
     package = _direct_solver_package(comm_size)
     if linear_solver == "auto":
         limit = DIRECT_SOLVE_LIMIT * (4 if dimension == 2 else 1)
@@ -201,26 +198,3 @@ class MinimizerOptions:
         finally:
             self.values = saved
             self.configure(snes)
-
-
-@contextlib.contextmanager
-def options_in_database(prefix: str, options: dict[str, Any]) -> Iterator[None]:
-    """Put ``options`` under ``prefix`` in PETSc's global database for the duration.
-
-    Names already present (from the command line or the caller's own ``PETSc.Options``) are left
-    alone, so they take precedence. Ours are removed afterwards so they cannot leak into another
-    solver that shares the prefix; they are pushed again around every solve because PETSc reads
-    some options lazily, e.g. those of multigrid levels, which GAMG creates during setup.
-    """
-    database = PETSc.Options(prefix)
-    added = []
-    for name, value in options.items():
-        if database.hasName(name):
-            continue
-        database.setValue(name, value)
-        added.append(name)
-    try:
-        yield
-    finally:
-        for name in added:
-            database.delValue(name)

@@ -4,26 +4,25 @@
 easy (few Newton iterations) lets the next one grow, never beyond the nominal step the user
 asked for; after too many consecutive cuts the stepping gives up with a
 :class:`~dolfinx_invertible.solvers.results.SolverError` that names the step, the time and the
-solver stage that failed. :func:`take_step` applies it to one step; :func:`solve_load_steps`
-ramps a load over a pseudo-time in (0, 1] with it, and
-:class:`~dolfinx_invertible.solvers.dynamics.ImplicitDynamics` steps in time with it.
+solver stage that failed. :func:`take_step` applies it to one step; the steppers
+(:class:`~dolfinx_invertible.solvers.stepper.Stepper`: load steps and time steps) take every
+step with it.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import dolfinx.fem
 import numpy as np
 
-from dolfinx_invertible import _compat
 from dolfinx_invertible.solvers.monitors import StepAttempt
 from dolfinx_invertible.solvers.results import SolverError, SolveResult
 
-__all__ = ["Solvable", "StepController", "solve_load_steps", "take_step"]
+__all__ = ["Solvable", "StepController", "take_step"]
 
 # Steps are sums of cuts of the nominal step; a remainder this small (relative to the nominal
 # step) is rounding, and the step goes to the target exactly.
@@ -165,6 +164,20 @@ class StepController:
     def _reaches_ceiling(self, size: float) -> bool:
         return size >= self._ceiling * (1.0 - _SNAP)
 
+    def set_nominal(self, nominal: float) -> None:
+        """Make ``nominal`` the largest step from now on and the next step's size.
+
+        The step's cut budget, its floor and what the controller learnt about failing sizes
+        start afresh; the accepted steps and the cuts so far stay counted.
+        """
+        if not (math.isfinite(nominal) and nominal > 0.0):
+            raise ValueError(f"the nominal step must be a finite number > 0, got {nominal!r}")
+        self.nominal = self.step = float(nominal)
+        self.minimum = self.nominal * self.cut ** (2 * self.max_cuts)
+        self._consecutive_cuts = 0
+        self._budget = self.max_cuts
+        self._ceiling, self._hold, self._held = math.inf, 1, 0
+
     def restart(self, size: float) -> None:
         """Try ``size`` again with a fresh budget of ``max_cuts`` cuts (after an escalation)."""
         self.escalations += 1
@@ -298,132 +311,3 @@ def _rejected(result: SolveResult, reason: str) -> SolveResult:
     return dataclasses.replace(
         result, converged=False, stage="step check", detail=reason, energy=None
     )
-
-
-def _load_targets(steps: int | Sequence[float]) -> list[float]:
-    if isinstance(steps, (int, np.integer)) and not isinstance(steps, bool):
-        if steps < 1:
-            raise ValueError(f"steps: need at least 1 load step, got {steps}")
-        return [(index + 1) / int(steps) for index in range(int(steps))]
-    try:
-        if isinstance(steps, (bool, str, bytes)):
-            raise TypeError
-        targets = [float(value) for value in steps]
-    except TypeError:
-        raise ValueError(
-            f"steps: expected an int or a sequence of pseudo-times, got {steps!r}"
-        ) from None
-    if not targets:
-        raise ValueError("steps: the sequence of pseudo-times is empty")
-    if any(not (0.0 < value <= 1.0) for value in targets):
-        raise ValueError(f"steps: pseudo-times must lie in (0, 1], got {targets}")
-    if any(later <= earlier for earlier, later in zip(targets[:-1], targets[1:], strict=True)):
-        raise ValueError(f"steps: pseudo-times must increase strictly, got {targets}")
-    if targets[-1] != 1.0:
-        raise ValueError(f"steps: the last pseudo-time must be 1, got {targets[-1]}")
-    return targets
-
-
-def solve_load_steps(
-    solver: Solvable,
-    update_load: Callable[[float], None],
-    steps: int | Sequence[float],
-    *,
-    max_cuts: int = 6,
-    on_step: Callable[[float, SolveResult], None] | None = None,
-    controller: StepController | None = None,
-    on_attempt: Callable[[StepAttempt], None] | None = None,
-) -> list[SolveResult]:
-    """Quasi-static load stepping over a pseudo-time t from 0 to 1, cutting steps on failure.
-
-    For each pseudo-time, ``update_load(t)`` sets the loads and boundary values (e.g. Constants
-    scaled by t) and the solver starts from the previous solution. When Newton fails, the last
-    converged solution and load (``update_load`` of that pseudo-time, possibly 0) are restored
-    and the increment is cut (:class:`StepController`); after an easy step it grows again,
-    never past the largest spacing of ``steps`` nor past the next target, so every target is
-    hit exactly.
-
-    Parameters
-    ----------
-    solver
-        An :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer` or a
-        :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`
-        (any :class:`Solvable`); its ``u`` holds the state at t = 0 on entry.
-    update_load
-        Sets the load for a pseudo-time in [0, 1].
-    steps
-        Number of equal steps, or increasing target pseudo-times in (0, 1] ending with 1.
-    max_cuts
-        Largest number of consecutive cuts before giving up (when no ``controller`` is given).
-    on_step
-        Called as ``on_step(t, result)`` after every converged (sub)step, e.g. to write output
-        that survives a later failure.
-    controller
-        The step policy; by default a :class:`StepController` whose nominal step is the largest
-        spacing of the targets.
-    on_attempt
-        Called after every attempt of a step, accepted or not (see :func:`take_step`).
-
-    Returns
-    -------
-    list of SolveResult
-        One per converged (sub)step, in order.
-
-    Raises
-    ------
-    SolverError
-        Newton still failed after ``max_cuts`` consecutive cuts. The state and load are those of
-        the last converged pseudo-time.
-    ValueError
-        Invalid ``steps`` or ``max_cuts``.
-    """
-    targets = _load_targets(steps)
-    if controller is None:
-        spacing = max(np.diff([0.0, *targets]))
-        controller = StepController(spacing, max_cuts=max_cuts)
-    u = solver.u
-    u_vector = _compat.petsc_vector(u)
-    last_converged = u_vector.copy()
-
-    def attempt(start: float, end: float) -> SolveResult:
-        update_load(end)
-        return solver.solve()
-
-    def restore(start: float) -> None:
-        last_converged.copy(u_vector)
-        u.x.scatter_forward()
-        update_load(start)
-
-    results: list[SolveResult] = []
-    time_reached = 0.0
-    for step_index, target in enumerate(targets, start=1):
-
-        def failure(start: float, end: float, result: SolveResult, index=step_index) -> str:
-            return (
-                f"load step {index} of {len(targets)} failed {controller.consecutive_cuts} "
-                f"times in a row, the step cut each time, last at pseudo-time {end:.6g}: "
-                f"{result.describe()}; last converged pseudo-time {start:.6g}, to which the "
-                "solution and the load are restored"
-            )
-
-        while time_reached < target:
-            try:
-                size, result = take_step(
-                    controller,
-                    time_reached,
-                    target - time_reached,
-                    attempt,
-                    restore,
-                    failure,
-                    escalate=getattr(solver, "escalate", None),
-                    on_attempt=on_attempt,
-                )
-            except SolverError as error:
-                error.step_index = step_index
-                raise
-            time_reached = target if size == target - time_reached else time_reached + size
-            u_vector.copy(last_converged)
-            results.append(result)
-            if on_step is not None:
-                on_step(time_reached, result)
-    return results

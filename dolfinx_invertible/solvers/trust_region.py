@@ -25,12 +25,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["GLOBALIZATIONS", "TrustRegion"]
-
-#: ``globalization`` choices of the minimiser: the trust region where it applies (``"auto"``), the
-#: energy line search alone (with a watchdog), or a trust region on the iterative path with the
-#: line search as its safeguard.
-GLOBALIZATIONS = ("auto", "line-search", "trust-region")
+__all__ = ["TrustRegion"]
 
 
 class TrustRegion:

@@ -74,6 +74,9 @@ def test_every_command_prints_its_help():
         (["--extension", "ife", "-dolfinx_invertible_snes_linesearch_type", "bt"], "no energy"),
         (["--elastic", "ufl"], "plain Neo-Hookean only"),
         (["--globalization", "trust-region", "--linear-solver", "direct"], "needs --linear-solver"),
+        (["--petsc-option", "ksp_type=notakrylov"], "--petsc-option ksp_type=notakrylov: PETSc"),
+        (["--petsc-option", "snes_rtol=abc"], "--petsc-option snes_rtol=abc: PETSc"),
+        (["-dolfinx_invertible_pc_type", "nopc"], "pc_type=nopc: PETSc"),
     ],
 )
 def test_bad_values_give_one_clear_line_and_no_output(tmp_path, arguments, message):
@@ -82,6 +85,15 @@ def test_bad_values_give_one_clear_line_and_no_output(tmp_path, arguments, messa
     lines = completed.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], lines
     assert not (tmp_path / "run" / "summary.json").exists()
+
+
+def test_a_petsc_option_no_solver_read_is_named_at_the_end(tmp_path):
+    options = ["--petsc-option", "ksp_rtoll=1e-8", "--petsc-option", "snes_max_it=40"]
+    completed = cli("run", "collapse", *SMALL, "--t-end", "0.02", "--out", str(tmp_path), *options)
+    assert completed.returncode == 0, completed.stderr
+    warnings = [line for line in completed.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "ksp_rtoll" in warnings[0], completed.stderr
+    assert "snes_max_it" not in warnings[0]  # read, so not named
 
 
 def test_steps_stop_a_dynamic_run_without_changing_its_schedule(tmp_path):

@@ -17,7 +17,7 @@ import sys
 import pytest
 
 from dolfinx_invertible.reports import REPORTS, stability
-from dolfinx_invertible.reports.stability import outputs, runner, study
+from dolfinx_invertible.reports.stability import diagnosis, outputs, runner, study
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -99,6 +99,75 @@ def test_failures_are_told_apart_by_their_data(values, cause):
     assert "t = 2 L/c" in detail
     # A clause the record has no data for is left out, not left empty.
     assert "; ;" not in detail
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        {},
+        # The converged long retry decides over the failed attempt's own evidence.
+        {"kink_gap": 1.0e-9, "residual_drop_last10": 0.85},
+        {"residual_drop_last10": 0.1, "failed_stage": "line search"},
+    ],
+)
+def test_a_long_retry_that_converges_makes_the_iteration_cap_the_cause(values):
+    record = _failure(long_retry="converged", long_retry_iterations=137, **values)
+    cause, detail = stability.diagnose(record)
+    assert cause == "iteration cap"
+    assert "converges in 137 iterations" in detail
+    assert "t = 2 L/c" in detail and "; ;" not in detail
+    assert cause in diagnosis.CAUSES
+
+
+@pytest.mark.parametrize(
+    ("values", "cause", "long_retry"),
+    [
+        (
+            {"long_retry": "iteration cap", "residual_drop_last10": 0.1},
+            "iteration cap while converging",
+            "that cut stops at the larger cap too",
+        ),
+        (
+            {"long_retry": "line search", "residual_drop_last10": 2.0},
+            "solver (iteration cap)",
+            "that cut fails (line search)",
+        ),
+        (
+            {"long_retry": "iteration cap", "kink_gap": 1.0e-9},
+            "kink σ₂+σ₃=0",
+            "that cut stops at the larger cap too",
+        ),
+        # Not run: the evidence of the failed attempt alone.
+        ({"residual_drop_last10": 0.1}, "iteration cap while converging", None),
+    ],
+)
+def test_a_long_retry_that_fails_leaves_the_cause_to_the_other_evidence(values, cause, long_retry):
+    found, detail = stability.diagnose(_failure(**values))
+    assert found == cause
+    assert "one more cut fails too (iteration cap)" in detail
+    if long_retry is None:
+        assert "allowed more Newton iterations" not in detail
+    else:
+        assert f"allowed more Newton iterations, {long_retry}" in detail
+
+
+def test_the_csv_reports_the_retries(tmp_path):
+    columns = ("retry", "long_retry", "long_retry_iterations")
+    assert all(stability.COLUMNS.count(name) == 1 for name in columns)
+    records = [
+        {**_failure(long_retry="converged", long_retry_iterations=137), "nu": 0.3},
+        {**_failure(long_retry="iteration cap"), "nu": 0.45},
+        {**_failure(retry="converged"), "nu": 0.49},
+    ]
+    path = tmp_path / "stability.csv"
+    outputs.write_csv(records, path)
+    with path.open() as stream:
+        rows = list(csv.DictReader(stream))
+    assert [tuple(row[name] for name in columns) for row in rows] == [
+        ("iteration cap", "converged", "137"),
+        ("iteration cap", "iteration cap", ""),
+        ("converged", "", ""),
+    ]
 
 
 def _continued(inverted, distance):

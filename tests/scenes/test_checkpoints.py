@@ -62,12 +62,12 @@ def _descendants(pid: int) -> list[int]:
     return found
 
 
-def run_and_kill(folder, launcher, at_line: int) -> int:
+def run_and_kill(folder, launcher, at_line: int, command=(*COMMAND, *RUN)) -> int:
     """Start the run, SIGKILL it (and every rank) once its log has ``at_line`` lines."""
     process = subprocess.Popen(
-        [*launcher, *COMMAND, *RUN, "--out", str(folder)], start_new_session=True, env=ENVIRONMENT
+        [*launcher, *command, "--out", str(folder)], start_new_session=True, env=ENVIRONMENT
     )
-    log = folder / "collapse.jsonl"
+    log = folder / f"{command[command.index('run') + 1]}.jsonl"
     deadline = time.monotonic() + 600
     while time.monotonic() < deadline and process.poll() is None:
         if log.exists() and len(log.read_text().splitlines()) >= at_line:
@@ -89,7 +89,7 @@ def final_displacement(folder) -> tuple[np.ndarray, np.ndarray]:
         coordinates = data["displacement.coordinates"]
         values = data["displacement.values"]
         state = json.loads(str(data["state"]))
-    assert state["dynamics"]["time"] == pytest.approx(0.4)
+    assert state["stepper"]["time"] == pytest.approx(0.4)
     order = np.lexsort(np.round(coordinates, 12).T[::-1])
     return coordinates[order], values[order]
 
@@ -170,13 +170,54 @@ def test_a_killed_run_resumes_to_the_end_of_the_same_run(
         assert np.abs(written - reference_written).max() <= 1e-10
 
 
-def _last_step(path, steps: int) -> np.ndarray:
+def _last_step(path, steps: int, end: float = 0.4) -> np.ndarray:
     with meshio.xdmf.TimeSeriesReader(str(path)) as reader:
         reader.read_points_cells()
         assert reader.num_steps == steps
         t, point_data, _ = reader.read_data(reader.num_steps - 1)
-    assert t == pytest.approx(0.4)
+    assert t == pytest.approx(end)
     return point_data["displacement"]
+
+
+#: Cook's membrane in six load steps, a whole checkpoint every two: a quasi-static run.
+COOK = [sys.executable, "-m", "dolfinx_invertible", "run", "cook-membrane", "--quiet", "--steps",
+        "6", "--checkpoint-every", "2"]  # fmt: skip
+
+
+def test_a_killed_quasi_static_run_resumes_to_the_end_of_the_same_run(tmp_path):
+    reference = tmp_path / "whole"
+    whole = subprocess.run([*COOK, "--out", str(reference)], capture_output=True, text=True,
+                           timeout=600, env=ENVIRONMENT)  # fmt: skip
+    assert whole.returncode == 0, whole.stderr
+    folder = tmp_path / "run"
+    at_line = random.Random().randint(2, 5)  # the initial state and 1..4 of the 6 load steps
+    written = run_and_kill(folder, [], at_line, command=COOK)
+    assert not (folder / "summary.json").exists()
+    state = latest_checkpoint(folder)[1]
+    assert written - 2 <= state["steps_written"] <= written
+    assert 0.0 < state["stepper"]["time"] < 1.0  # a pseudo-time part of the way
+
+    resumed = subprocess.run(
+        [*COOK[:5], "--resume", str(folder)], capture_output=True, text=True, timeout=600,
+        env=ENVIRONMENT,
+    )  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    summary, expected = (
+        json.loads((path / "summary.json").read_text()) for path in (folder, reference)
+    )
+    assert summary["outcome"] == expected["outcome"] == "completed"
+    assert summary["steps"] == expected["steps"] == 6
+    assert summary["newton_iterations"] == expected["newton_iterations"]
+    assert summary["tip_displacement"] == pytest.approx(expected["tip_displacement"], abs=1e-10)
+    # The tip moved: the load was applied, in full, by both runs.
+    assert expected["relative_difference"] == pytest.approx(0.0, abs=0.05)
+    lines = [json.loads(line) for line in (folder / "cook-membrane.jsonl").read_text().splitlines()]
+    assert [line["step"] for line in lines] == list(range(7))
+    assert [line["time"] for line in lines] == pytest.approx([k / 6 for k in range(7)])
+    written, reference_written = (
+        _last_step(path / "cook-membrane.xdmf", 7, end=1.0) for path in (folder, reference)
+    )
+    assert np.abs(written - reference_written).max() <= 1e-10
 
 
 def test_a_run_killed_before_its_first_whole_checkpoint_resumes_from_its_parts(tmp_path):
@@ -277,11 +318,11 @@ def test_a_run_stopped_by_steps_resumes_and_keeps_a_schedule_timed_by_its_end(tm
     first = subprocess.run([*stretch, *arguments, "--steps", "2", "--out", str(folder)],
                            capture_output=True, text=True, timeout=600)  # fmt: skip
     assert first.returncode == 0, first.stderr
-    assert latest_checkpoint(folder)[1]["dynamics"]["time"] == pytest.approx(0.02)
+    assert latest_checkpoint(folder)[1]["stepper"]["time"] == pytest.approx(0.02)
     later = subprocess.run([*stretch, "--resume", str(folder), "--t-end", "2.4"],
                            capture_output=True, text=True, timeout=600)  # fmt: skip
     assert later.returncode == 2 and "timed by the end time" in later.stderr
-    assert latest_checkpoint(folder)[1]["dynamics"]["time"] == pytest.approx(0.02)
+    assert latest_checkpoint(folder)[1]["stepper"]["time"] == pytest.approx(0.02)
     # Resumed as it was, it goes on to its end (where --steps stopped it does not carry over).
     rest = subprocess.run([*stretch, "--resume", str(folder)], capture_output=True, text=True,
                           timeout=600)  # fmt: skip
@@ -305,7 +346,7 @@ def test_a_run_whose_cuts_ran_out_resumes_with_a_larger_budget(tmp_path):
     assert stopped["outcome"] == "failed" and stopped["parameters"]["max_cuts"] == 0
     assert 0.0 < stopped["time"] < stopped["failed_time"] < stopped["parameters"]["t_end"]
     state = latest_checkpoint(folder)[1]
-    assert state["dynamics"]["time"] == pytest.approx(stopped["time"])
+    assert state["stepper"]["time"] == pytest.approx(stopped["time"])
     assert state["steps_written"] == stopped["steps"] + 1  # with the initial state
     refused = subprocess.run([*press, "--resume", str(folder), "--max-cuts", "6", "--E", "2e3"],
                              capture_output=True, text=True, timeout=600)  # fmt: skip

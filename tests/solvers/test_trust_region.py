@@ -6,8 +6,7 @@ import math
 
 import pytest
 
-from dolfinx_invertible.scenes.parameters import GLOBALIZATIONS as PARSER_GLOBALIZATIONS
-from dolfinx_invertible.solvers.trust_region import GLOBALIZATIONS, TrustRegion
+from dolfinx_invertible.solvers.trust_region import TrustRegion
 
 
 def _step(region: TrustRegion, **given) -> float:
@@ -64,7 +63,3 @@ def test_an_unknown_step_length_leaves_the_radius(step_norm):
     region = TrustRegion()
     region.radius = 4.0
     assert _step(region, step_norm=step_norm, actual=-5.0) == 4.0
-
-
-def test_the_command_line_offers_the_solvers_globalizations():
-    assert PARSER_GLOBALIZATIONS == GLOBALIZATIONS

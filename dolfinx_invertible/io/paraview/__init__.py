@@ -3,20 +3,19 @@
 :func:`inspect_xdmf` opens a :class:`~dolfinx_invertible.io.xdmf.ResultWriter` series with
 ParaView's XDMF3 reader and reports its time steps, arrays and their ranges; :func:`render`
 draws one picture of a run (with analytic obstacles, if given); :func:`animate` an animated
-GIF; :func:`render_runs` draws one picture per run for the gallery. From the shell::
+GIF; :func:`render_runs` draws one picture per run for the gallery. From the shell
+(:mod:`dolfinx_invertible.scenes.pictures` is the command)::
 
-    python -m dolfinx_invertible.io.paraview inspect output/collapse/point_C2.xdmf
-    python -m dolfinx_invertible.io.paraview render output/collapse --output docs/gallery
+    dolfinx-invertible paraview inspect output/collapse/point_C2.xdmf
+    dolfinx-invertible paraview render output/collapse --output docs/gallery
 
 - :mod:`.series`: reading and rendering (:func:`inspect_xdmf`, :func:`render`,
   :func:`animate`, :func:`render_runs`, :func:`run_files`, the picture's constants);
 - :mod:`.obstacles`: obstacles sampled on a grid for ParaView, the steps of a run's log;
 - :mod:`.process`: ``pvbatch`` as a child process, with its own ``Xvfb`` for pictures
-  (:func:`find_pvbatch`, :class:`ParaViewError`);
-- :mod:`.cli`: the command line (:func:`main`).
+  (:func:`find_pvbatch`, :class:`ParaViewError`).
 """
 
-from dolfinx_invertible.io.paraview.cli import main
 from dolfinx_invertible.io.paraview.process import (
     ParaViewError,
     ParaViewNotFoundError,
@@ -60,7 +59,6 @@ __all__ = [
     "find_pvbatch",
     "inspect_vtx",
     "inspect_xdmf",
-    "main",
     "render",
     "render_runs",
     "run_files",

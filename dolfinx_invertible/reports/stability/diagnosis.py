@@ -162,6 +162,20 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
     )
     if retry == "converged":
         ending += ", and one more cut converges"
+    elif retry is not None:
+        ending += f", and one more cut fails too ({retry})"
+    # The retry that stopped at the iteration cap is run once more with a larger cap
+    # (runner.LONG_SOLVE): does Newton get there with more iterations?
+    long_retry = record.get("long_retry")
+    if long_retry == "converged":
+        ending += (
+            f"; allowed more Newton iterations, that cut converges in "
+            f"{_number(record.get('long_retry_iterations'))} iterations"
+        )
+    elif long_retry == "iteration cap":
+        ending += "; allowed more Newton iterations, that cut stops at the larger cap too"
+    elif long_retry is not None:
+        ending += f"; allowed more Newton iterations, that cut fails ({long_retry})"
     # The spectrum is known on small problems only (runner.SPECTRUM_LIMIT).
     tangent = (
         f"; the exact tangent at the last iterate has {record.get('tangent_negative')} "
@@ -169,12 +183,24 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
         if record.get("tangent_negative") is not None
         else ""
     )
+    drop = record.get("residual_drop_last10")
+    if long_retry == "converged":
+        falling = (
+            f" (the failed attempt's residual × {_number(drop)} over its last 10 iterations)"
+            if drop is not None
+            else ""
+        )
+        return (
+            "iteration cap",
+            f"{where}; the cut step needs more Newton iterations than the cap of "
+            f"50{falling}{tangent}; {ending}",
+        )
     if gap is not None and gap < KINK:
         return (
             "kink σ₂+σ₃=0",
-            f"{where}; the last Newton iterate has inverted points with |σ₂ + σ₃|/σ₁ = "
-            f"{_number(gap)}: on the kink of the energy, where the stress jumps, so Newton "
-            f"cannot converge to a solution there; {ending}",
+            f"{where}; the last Newton iterate of the failed attempt has inverted points with "
+            f"|σ₂ + σ₃|/σ₁ = {_number(gap)}: on the kink of the energy, where the stress "
+            f"jumps; {ending}",
         )
     if cap is not None and cap < PINNED:
         return (
@@ -190,7 +216,6 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
             f"{where}; the tangent at the last iterate has condition number "
             f"{_number(condition)}; {ending}",
         )
-    drop = record.get("residual_drop_last10")
     if stage == "iteration cap" and drop is not None and drop < CONVERGING:
         return (
             "iteration cap while converging",
@@ -238,12 +263,17 @@ CAUSES = {
     "energy below rest when inverted": "the material's energy is lower in inverted states than "
     "at rest (Neo-Hookean + C1 at large λ/μ), so the released body falls into ever more "
     "expanded inverted states: a property of the energy, not of the solver.",
-    "kink σ₂+σ₃=0": "the last Newton iterate has inverted points on σ₂ + σ₃ = 0, where an "
-    "energy of the signed singular values that is not even in each pair of them (corotated, "
-    "fixed corotated) has a kink and its stress jumps: Newton cannot converge to a solution "
-    "with a point there, and the controller cuts until it gives up.",
-    "iteration cap while converging": "Newton was still converging (linearly, on the "
-    "projected tangent) when it reached its 50 iterations, at every step the controller tried.",
+    "kink σ₂+σ₃=0": "the last Newton iterate of the failed step has inverted points on "
+    "σ₂ + σ₃ = 0, where an energy of the signed singular values that is not even in each pair "
+    "of them (corotated, fixed corotated) has a kink and its stress jumps: the step failed with "
+    "its iterate there after the controller's cuts; the detail says what one more cut (and, "
+    "where that stopped at the iteration cap, more iterations) gave.",
+    "iteration cap": "the step failed, one more cut stopped at Newton's 50-iteration cap too, "
+    "and the same cut allowed more iterations converges (in the number of iterations the "
+    "detail gives): Newton gets there, in more iterations than the cap.",
+    "iteration cap while converging": "the failed attempt stopped at Newton's 50-iteration "
+    "cap with its residual still falling (to less than half over its last 10 iterations), "
+    "and a retry allowed more iterations was not run or did not converge.",
     "cut budget": "the controller gave up after 6 consecutive cuts; one more cut converges.",
     "inversion-free cap stalls": "the inversion-free cap limits every Newton step to nearly "
     "zero: the iterate is pinned against the volume barrier.",

@@ -75,6 +75,8 @@ COLUMNS = (
     "tangent_negative",
     "tangent_condition",
     "retry",
+    "long_retry",
+    "long_retry_iterations",
     "nan",
     "wall_time_s",
     "cause_detail",
@@ -303,7 +305,9 @@ def summary_lines(
         "if it stays inverted, it sits in an inverted local minimum. A failed step's last "
         "Newton iterate is examined (inverted points' singular values against the kink "
         "σ₂ + σ₃ = 0, inversion-free caps, the tangent's spectrum) and the step is retried once "
-        "with the cut step.",
+        "with the cut step (`retry`); a retry that stops at the iteration cap is run once more "
+        "with a larger cap (`long_retry`, `long_retry_iterations`), and if that converges the "
+        "cause is the iteration cap.",
         "",
         "## Headline",
         "",

@@ -135,7 +135,10 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
     over the last ten iterations) and the caps of the step limits (``cap_last``, ``cap_min``,
     ``cap_median``). The retry, from the restored last converged state with the step the
     controller cut to (below its floor or past its cuts), tells whether one more cut would
-    have converged (``retry``).
+    have converged (``retry``: ``"converged"`` or the stage it failed in). A retry that
+    stopped at the iteration cap is run once more, same state and step, with
+    :data:`LONG_SOLVE` iterations allowed (``long_retry``, and ``long_retry_iterations`` when
+    it converged): does Newton get there with more iterations.
     """
     import dolfinx
 
@@ -143,7 +146,7 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
     from dolfinx_invertible.solvers.results import SolverError
 
     run = recorder.run
-    dynamics = run.dynamics
+    dynamics = run.stepper
     minimizer = run.minimizer
     data: dict[str, Any] = {"attempt_iterations": max(len(recorder.norms) - 1, 0)}
     norms = recorder.norms
@@ -270,10 +273,9 @@ def _continue(run, cell: Cell) -> dict[str, Any]:
     from dolfinx_invertible.fem.diagnostics import cell_diagnostics, summary
     from dolfinx_invertible.scenes.outcome import body_diameter, rest_distance
     from dolfinx_invertible.solvers.results import SolverError
-    from dolfinx_invertible.solvers.stepping import StepController
 
-    dynamics = run.dynamics
-    dynamics.controller = StepController(CONTINUATION_STEP * cell.time_unit)
+    dynamics = run.stepper
+    dynamics.controller.set_nominal(CONTINUATION_STEP * cell.time_unit)
     data: dict[str, Any] = {}
     previous = run.u.x.array.copy()
     diameter = body_diameter(run.u)
@@ -397,7 +399,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     )
     run = recorder.run
     record["inverted_energy_min"] = inverted_energy_minimum(parameters)
-    if run is not None and run.dynamics is not None:
+    if run is not None and run.scene.dynamic:
         if record["outcome"] in ("stalled_inverted", "not_at_rest", "failed"):
             record["overlap_cells"] = overlapping_cells(run.u)
             record["largest_singular_value"] = float(_point_singular_values(run.u)[1].max())
