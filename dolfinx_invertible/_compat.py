@@ -6,6 +6,8 @@ Written against DOLFINx 0.5.2 (Debian bookworm) first; later versions add branch
 
 from __future__ import annotations
 
+import contextlib
+
 try:
     # The PyPI wheel (dolfinx-solver-*) loads its own MPI library through mpi4py, which must
     # happen before any DOLFINx binding loads; importing dolfinx_solver does that in order.
@@ -431,3 +433,23 @@ def vtx_writer(comm, path, functions):
     if policy is not None:
         options["mesh_policy"] = policy.reuse
     return dolfinx.io.VTXWriter(comm, str(path), list(functions), engine="BP4", **options)
+
+
+@contextlib.contextmanager
+def petsc_errors_untold():
+    """Keep PETSc from printing its tracebacks for the duration; errors are still raised.
+
+    petsc4py up to 3.22 has PETSc's "ignore" handler; later ones dropped it, and their "python"
+    handler raises without printing.
+    """
+    for handler in ("ignore", "python"):
+        try:
+            PETSc.Sys.pushErrorHandler(handler)
+        except (PETSc.Error, ValueError):
+            continue
+        try:
+            yield
+        finally:
+            PETSc.Sys.popErrorHandler()
+        return
+    yield

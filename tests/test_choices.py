@@ -26,7 +26,8 @@ REGISTRIES = {
     if isinstance(getattr(choices, name), choices.Choices)
 }
 PACKAGE = Path(choices.__file__).resolve().parent
-ROOT = PACKAGE.parent
+#: The repository (the wheel lane tests an installed package: not its parent).
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_every_choice_resolves_to_its_implementation():
@@ -98,7 +99,7 @@ def test_no_module_spells_a_set_of_choices_again():
             continue
         for line, values in _collections_of_strings(ast.parse(path.read_text())):
             if values in wanted:
-                found.append(f"{path.relative_to(ROOT)}:{line} spells {wanted[values]}")
+                found.append(f"{path.relative_to(PACKAGE)}:{line} spells {wanted[values]}")
     assert not found, found
 
 

@@ -30,6 +30,8 @@ from typing import Any
 
 from petsc4py import PETSc
 
+from dolfinx_invertible import _compat
+
 __all__ = [
     "check_petsc_options",
     "forget_read_options",
@@ -111,16 +113,6 @@ def _what_petsc_said(error: PETSc.Error) -> str:
     return f"PETSc: {detail or kind}" if detail or kind else f"PETSc error {error.ierr}"
 
 
-@contextlib.contextmanager
-def _errors_untold() -> Iterator[None]:
-    """Keep PETSc from printing its tracebacks; the errors are still raised."""
-    PETSc.Sys.pushErrorHandler("ignore")
-    try:
-        yield
-    finally:
-        PETSc.Sys.popErrorHandler()
-
-
 # -- the check ------------------------------------------------------------------------------
 def _typed(kind: type, name: str) -> str | None:
     """Return the type a ``ksp_<type>_...`` or ``pc_<type>_...`` option belongs to, if one."""
@@ -171,7 +163,7 @@ def _refused(options: Mapping[str, str | None]) -> str | None:
     snes_type = options.get("snes_type")
     if snes_type is not None and snes_type.lower() in _NEED_A_DM:
         return f"SNES type {snes_type} needs a DM with a decomposition, which the solvers lack"
-    with options_in_database(CHECK_PREFIX, options), _errors_untold():
+    with options_in_database(CHECK_PREFIX, options), _compat.petsc_errors_untold():
         try:
             snes = PETSc.SNES().create(PETSc.COMM_SELF)
             try:
