@@ -9,6 +9,7 @@ from typing import Any
 from dolfinx_invertible.scenes.parameters import Parameters
 from dolfinx_invertible.scenes.scene import Scene
 from dolfinx_invertible.scenes.statistics import RunStatistics
+from dolfinx_invertible.solvers.monitors import StepAttempt
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.stepper import Stepper
 
@@ -41,7 +42,8 @@ class Run:
         (:func:`~dolfinx_invertible.cell_diagnostics`), as the outputs write them.
     record
         The step-log record of the last stored state: the diagnostics, the step's solver
-        counts, the terms' figures, the wall time.
+        counts, the terms' figures, the wall time, and the attempts of the step that failed
+        before it (``failed_attempts``: step size, stage, Newton iterations, seconds).
     stored
         States stored so far (the initial one and every accepted step; a continued run counts
         its first run's).
@@ -52,6 +54,9 @@ class Run:
     completed, failure
         Whether the stepping reached its end; why it stopped otherwise (``reason``,
         ``failed_stage``, ``failed_time``).
+    failed_attempts
+        The failed attempts since the last stored state (:meth:`add_attempt`), which the next
+        stored state's record takes.
     """
 
     scene: Scene
@@ -71,6 +76,22 @@ class Run:
     started: float = dataclasses.field(default_factory=perf_counter)
     completed: bool = False
     failure: dict[str, Any] = dataclasses.field(default_factory=dict)
+    failed_attempts: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+
+    def add_attempt(self, attempt: StepAttempt) -> None:
+        """Count an attempt of a step; a failed one goes into the next stored state's record."""
+        if attempt.accepted:
+            return
+        result = attempt.result
+        self.statistics.add_failed_attempt(result)
+        self.failed_attempts.append(
+            {
+                "step_size": attempt.end - attempt.start,
+                "stage": result.stage or "step check",
+                "newton_iterations": result.newton_iterations,
+                "wall_time": result.wall_time,
+            }
+        )
 
     def store(self, result: SolveResult | None) -> None:
         """Record the current state (collective): diagnostics, statistics, the step's record.
@@ -101,6 +122,9 @@ class Run:
             record["kinetic_energy"] = kinetic
         for term in self.terms:
             record.update(term.step_quantities())
+        if self.failed_attempts:
+            record["failed_attempts"] = self.failed_attempts
+            self.failed_attempts = []
         record["wall_time"] = perf_counter() - self.started
         self.record = record
         self.stored += 1

@@ -153,7 +153,8 @@ def _close(run: Run, observers: list[RunObserver]) -> None:
 
 
 def _watch(run: Run, observers: list[RunObserver]) -> None:
-    """Connect the observers that watch the solver (iterations, step caps, attempts)."""
+    """Connect the run's count of attempts and the observers that watch the solver."""
+    run.stepper.add_monitor(on_attempt=run.add_attempt)
     hooks = {}
     for name in ("iteration", "step_cap", "attempt"):
         watching = [

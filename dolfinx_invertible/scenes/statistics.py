@@ -32,6 +32,10 @@ class RunStatistics:
     svd_points
         Per kernel kind, the share of points that went through the SVD, one entry per step (the
         summary's ``svd_share`` is their mean).
+    failed_attempts
+        Attempts of a step that failed (each then cut and retried, or ending the run).
+    failed_attempts_wall_time
+        The seconds those attempts took (their solves'), part of the run's wall time.
     """
 
     steps: int = 0
@@ -43,6 +47,8 @@ class RunStatistics:
     min_J_reached: float = math.inf  # noqa: N815 (the notation: J = det F)
     nan_encountered: bool = False
     svd_points: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    failed_attempts: int = 0
+    failed_attempts_wall_time: float = 0.0
 
     def add_state(self, diagnostics: dict[str, Any]) -> None:
         """Count a stored state's global diagnostics (inverted cells, smallest J)."""
@@ -60,6 +66,11 @@ class RunStatistics:
                 self.svd_points.setdefault(kind, []).append(share)
         if result.energy is not None and not math.isfinite(result.energy):
             self.nan_encountered = True
+
+    def add_failed_attempt(self, result) -> None:
+        """Count a failed attempt's :class:`~dolfinx_invertible.SolveResult`."""
+        self.failed_attempts += 1
+        self.failed_attempts_wall_time += result.wall_time
 
     def summary(self) -> dict[str, Any]:
         """Return the counts under their summary keys (``svd_share`` the mean of the points)."""

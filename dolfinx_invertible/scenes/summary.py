@@ -5,7 +5,8 @@ choices became, the ranks and unknowns, the run's statistics
 (:class:`~dolfinx_invertible.scenes.statistics.RunStatistics`), the final state's diagnostics,
 the step controller's statistics, the stateful terms' figures, the outcome (a relaxation's:
 ``recovered``, ``rest_distance``, ...; a failure's: ``reason``, ``failed_stage``,
-``failed_time``), and the scene's own quantities.
+``failed_time``, and the failed attempts of the step that did not pass,
+``unfinished_step_attempts``), and the scene's own quantities.
 """
 
 from __future__ import annotations
@@ -55,6 +56,9 @@ def summary_so_far(run: Run, *, final: dict[str, Any] | None = None) -> dict[str
     for term in run.terms:
         summary.update(term.summary_quantities())
     summary.update(run.failure)
+    if run.failed_attempts:
+        # The attempts of the step that did not pass: no stored state's record holds them.
+        summary["unfinished_step_attempts"] = list(run.failed_attempts)
     return summary
 
 

@@ -248,6 +248,18 @@ class EnergyMinimizer:
         self.snes.setTolerances(max_it=int(value))
 
     @property
+    def stall_window(self) -> int | None:
+        """Iterations without progress that end a solve as stalled (``None``: never); settable.
+
+        Defaults to :data:`~dolfinx_invertible.solvers.convergence.STALL_WINDOW`.
+        """
+        return self._test.window
+
+    @stall_window.setter
+    def stall_window(self, value: int | None) -> None:
+        self._test.window = None if value is None else int(value)
+
+    @property
     def blend_after(self) -> int | None:
         """Projected iterations after which tangents blend (``None``: after :meth:`escalate`)."""
         return self.directions.blend_after
@@ -389,7 +401,17 @@ class EnergyMinimizer:
         if iteration > 0 and not self._search.watching:
             # Tentative steps keep the tangent they started with.
             self.directions.after_step(self._search.full_step)
-        return self._test.check(iteration, float(norms[2]), snes, self._watch_unpaid)
+        search = self._search
+        # A tentative iterate of the watchdog may lie above its origin: not a measure of progress.
+        energy = None if search.watching else search.known_energy(snes.getSolution())
+        return self._test.check(
+            iteration,
+            float(norms[2]),
+            snes,
+            self._watch_unpaid,
+            energy=energy,
+            rounding=search.rounding_error,
+        )
 
     def _watch_unpaid(self) -> bool:
         """Veto convergence at a tentative iterate above the origin's energy (then go back)."""

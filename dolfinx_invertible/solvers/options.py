@@ -37,7 +37,8 @@ DEFAULT_PETSC_OPTIONS: dict[str, Any] = {
     "snes_linesearch_type": "basic",
     "snes_rtol": 1.0e-9,
     "snes_stol": 0.0,
-    "snes_max_it": 50,
+    # A safeguard: a solve's budget is its progress (convergence.py, the "stalled" stage).
+    "snes_max_it": 200,
     "snes_max_linear_solve_fail": 1_000_000,
 }
 
@@ -99,6 +100,11 @@ def linear_solver_options(
             # Null-pivot detection, which PETSc needs to report the factor's inertia (the
             # minimiser reads it to tell an indefinite exact tangent).
             options["mat_mumps_icntl_24"] = 1
+            # Working space 3x MUMPS's estimate (its default: 1.2x). LDLᵀ of an indefinite
+            # tangent delays pivots beyond the estimate; at 1.2x the factorisation of a contact
+            # pile's tangent failed (DIVERGED_PCSETUP_FAILED) at every cut of a step, at 3x it
+            # passes (docs/contact.md). Only the direct path's small systems pay for it.
+            options["mat_mumps_icntl_14"] = 200
         return options
     # Each Newton system to 1e-10. Looser solves measured (docs/performance.md, "Scale"): 1e-6
     # or min(1e-6, a tenth of the Newton target over the residual) save 18-26 % of a step on

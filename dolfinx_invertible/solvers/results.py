@@ -10,7 +10,7 @@ __all__ = ["STAGES", "SolveResult", "SolverError", "ksp_reason_name", "snes_reas
 
 
 #: The solver stages a failed solve names (``SolveResult.stage``).
-STAGES = ("linear solve", "line search", "iteration cap", "NaN")
+STAGES = ("linear solve", "line search", "stalled", "iteration cap", "NaN")
 
 
 class SolverError(RuntimeError):
@@ -105,7 +105,8 @@ class SolveResult:
         :class:`~dolfinx_invertible.solvers.hyperelastic.HyperelasticProblem`).
     stage
         For a failed solve, the stage that failed: ``"linear solve"``, ``"line search"``,
-        ``"iteration cap"`` or ``"NaN"`` (:data:`STAGES`); ``None`` when converged.
+        ``"stalled"`` (no progress over a window of iterations), ``"iteration cap"`` or
+        ``"NaN"`` (:data:`STAGES`); ``None`` when converged.
     detail
         One sentence on why the solve stopped, e.g. which test converged or what failed.
     linear_reason_name

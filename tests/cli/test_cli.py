@@ -149,6 +149,13 @@ def test_a_failing_run_says_where_and_leaves_a_readable_output(tmp_path):
     assert summary["outcome"] == "failed" and summary["failed_stage"] == "iteration cap"
     assert "time step 1 from t = 0" in summary["reason"] and "DIVERGED_MAX_IT" in summary["reason"]
     assert summary["reason"] in completed.stdout
+    # Every attempt of the step that did not pass is in the summary, with what it cost.
+    attempts = summary["unfinished_step_attempts"]
+    assert len(attempts) == summary["failed_attempts"] == summary["stepping"]["cuts"] > 0
+    assert all(a["stage"] == "iteration cap" and a["newton_iterations"] == 0 for a in attempts)
+    assert summary["failed_attempts_wall_time"] == pytest.approx(
+        sum(a["wall_time"] for a in attempts)
+    )
     steps = _readable_steps(folder / "collapse.xdmf")
     assert steps == summary["steps"] + 1 == 1  # the initial state
 

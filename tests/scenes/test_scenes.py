@@ -26,7 +26,7 @@ SUMMARY_KEYS = {
     "scene", "model", "extension", "parameters", "ranks", "dofs", "steps", "completed",
     "converged", "nan_encountered", "final_min_J", "final_inverted", "max_inverted",
     "newton_iterations", "linear_iterations", "wall_time_s", "svd_share", "stepping", "outcome",
-    "solver",
+    "solver", "failed_attempts", "failed_attempts_wall_time",
 }  # fmt: skip
 
 
@@ -137,6 +137,15 @@ def test_relaxation_scenes_recover_and_write_their_output(name, directory):
         assert written["outcome"] == summary["outcome"]
         lines = (folder / f"{name}.jsonl").read_text().splitlines()
         assert len(lines) == summary["steps"] + 1  # the initial state too
+        # Every cut is a failed attempt, logged with the step that followed it.
+        failed = [a for line in lines for a in json.loads(line).get("failed_attempts", [])]
+        assert len(failed) == summary["failed_attempts"] == summary["stepping"]["cuts"]
+        assert sum(a["wall_time"] for a in failed) == pytest.approx(
+            summary["failed_attempts_wall_time"]
+        )
+        assert summary["failed_attempts_wall_time"] < summary["wall_time_s"]
+        if name == "scatter":
+            assert failed and all(a["stage"] and a["step_size"] > 0 for a in failed)
         first, last = json.loads(lines[0]), json.loads(lines[-1])
         assert first["time"] == 0.0 and last["time"] == pytest.approx(t_end)
         assert last["inverted_cells"] == 0

@@ -28,6 +28,7 @@ from dolfinx_invertible.solvers import (
     external_forms,
     solve_load_steps,
 )
+from dolfinx_invertible.solvers.convergence import STALL_WINDOW, ConvergenceTest
 
 MU, LAM = lame(1.0e3, 0.3)
 PROBE_POINTS = np.array([[1.0, 0.1, 0.1], [0.5, 0.25, 0.25], [0.9, 0.2, 0.05]])
@@ -447,6 +448,39 @@ def test_trust_region_follows_negative_curvature_to_the_line_search_solution():
     assert len(kinds) < len(searched_kinds)
     assert np.allclose(bounded, searched, rtol=1e-6, atol=1e-8)
     assert dynamics.problem.solver.trust_region.radius < np.inf
+
+
+@pytest.mark.parametrize("globalization", ["line-search", "trust-region"])
+def test_the_progress_test_sees_the_energy_of_the_accepted_iterates(globalization, monkeypatch):
+    """The convergence test is given Π at the accepted iterates of both globalizations (the
+    progress test judges by it), falling, and ending at the solve's reported energy."""
+    seen: list[tuple[int, float | None]] = []
+    check = ConvergenceTest.check
+
+    def record(test, iteration, norm, snes, reject, energy=None, rounding=0.0):
+        seen.append((iteration, energy))
+        return check(test, iteration, norm, snes, reject, energy=energy, rounding=rounding)
+
+    monkeypatch.setattr(ConvergenceTest, "check", record)
+    results = []
+    monkeypatch.setattr(
+        HyperelasticProblem, "solve", _recording(HyperelasticProblem.solve, results)
+    )
+    _, kinds, dynamics = _collapse_with(globalization)
+    assert dynamics.problem.solver.stall_window == STALL_WINDOW
+    energies = [energy for iteration, energy in seen if iteration > 0 and energy is not None]
+    assert len(energies) >= len(kinds) // 2 >= 2
+    assert all(b <= a for a, b in zip(energies, energies[1:]))
+    assert results and results[-1].energy == pytest.approx(energies[-1], rel=1e-12)
+
+
+def _recording(solve, results):
+    def recorded(self, *args, **kwargs):
+        result = solve(self, *args, **kwargs)
+        results.append(result)
+        return result
+
+    return recorded
 
 
 def test_trust_region_needs_the_iterative_path():

@@ -248,28 +248,33 @@ def test_blended_tangent_restores_fast_convergence_out_of_a_collapse():
     assert blended.energy == pytest.approx(projected.energy, rel=1e-9)
 
 
-def _collapsed_cube_dynamics(dt: float) -> ImplicitDynamics:
+def _collapsed_cube_dynamics(dt: float, **petsc_options) -> ImplicitDynamics:
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
     u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(1.0e3, 0.49)
-    return ImplicitDynamics(u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=dt)
+    return ImplicitDynamics(
+        u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=dt,
+        petsc_options=petsc_options,
+    )  # fmt: skip
 
 
 def test_a_step_whose_cuts_run_out_escalates_to_blended_tangents():
-    """dt·c/L = 0.1 out of the collapse: projected Newton fails at every cut, the blend does not.
+    """dt·c/L = 0.1 out of the collapse, 50 Newton iterations an attempt: projected Newton fails
+    at every cut, the blend does not.
 
     Without the escalation the step fails seven times (down to dt/64, 50 iterations each);
-    with it, dt/64 is tried again with blended tangents and converges.
+    with it, dt/64 is tried again with blended tangents and converges. (At the default budget
+    projected Newton gets through a cut on its own: below.)
     """
-    refused = _collapsed_cube_dynamics(0.1)
+    refused = _collapsed_cube_dynamics(0.1, snes_max_it=50)
     refused.problem.escalate = lambda: False
     # 7 = the first attempt and the default max_cuts = 6 cuts.
     with pytest.raises(SolverError, match="failed 7 times"):
         refused.step()
     assert refused.controller.escalations == 0  # refused above
 
-    escalated = _collapsed_cube_dynamics(0.1)
+    escalated = _collapsed_cube_dynamics(0.1, snes_max_it=50)
     result = escalated.step()
     assert result.converged and result.blended_iterations > 0
     # regression pin: observed 16 on 2026-12-04 (a5eadce) with
@@ -281,3 +286,14 @@ def test_a_step_whose_cuts_run_out_escalates_to_blended_tangents():
     # 0.1 / 2⁶: the six halvings of the cuts, then that size again with blended tangents.
     assert escalated.controller.statistics()["step_min"] == pytest.approx(0.1 / 64)
     assert escalated.problem.solver.blend_after == 0  # the mode stays for the later steps
+
+
+def test_the_default_budget_takes_the_step_the_cap_of_fifty_could_not():
+    """The same step with Newton's default budget (progress, not 50 iterations): a cut
+    converges with projected tangents, without running out of cuts or escalating."""
+    dynamics = _collapsed_cube_dynamics(0.1)
+    dynamics.problem.escalate = lambda: False
+    result = dynamics.step()
+    assert result.converged and result.newton_iterations > 50
+    assert dynamics.controller.escalations == 0
+    assert dynamics.controller.statistics()["cuts"] < 6

@@ -192,8 +192,8 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
         )
         return (
             "iteration cap",
-            f"{where}; the cut step needs more Newton iterations than the cap of "
-            f"50{falling}{tangent}; {ending}",
+            f"{where}; the cut step needs more Newton iterations than the attempt's budget "
+            f"(its cap or its progress test){falling}{tangent}; {ending}",
         )
     if gap is not None and gap < KINK:
         return (
@@ -216,12 +216,12 @@ def _diagnose_failure(record: dict[str, Any]) -> tuple[str, str]:
             f"{where}; the tangent at the last iterate has condition number "
             f"{_number(condition)}; {ending}",
         )
-    if stage == "iteration cap" and drop is not None and drop < CONVERGING:
+    if stage in ("iteration cap", "stalled") and drop is not None and drop < CONVERGING:
         return (
             "iteration cap while converging",
             f"{where}; Newton was converging linearly (residual × {_number(drop)} over the "
             f"last 10 iterations, × {_number(record.get('residual_drop'))} over the attempt) "
-            f"but not within 50 iterations{tangent}; {ending}",
+            f"but not within the iteration cap{tangent}; {ending}",
         )
     if retry == "converged":
         return ("step-size floor" if below_floor else "cut budget", f"{where}; {ending}")
@@ -267,11 +267,11 @@ CAUSES = {
     "σ₂ + σ₃ = 0, where an energy of the signed singular values that is not even in each pair "
     "of them (corotated, fixed corotated) has a kink and its stress jumps: the step failed with "
     "its iterate there after the controller's cuts; the detail says what one more cut (and, "
-    "where that stopped at the iteration cap, more iterations) gave.",
-    "iteration cap": "the step failed, one more cut stopped at Newton's 50-iteration cap too, "
-    "and the same cut allowed more iterations converges (in the number of iterations the "
-    "detail gives): Newton gets there, in more iterations than the cap.",
-    "iteration cap while converging": "the failed attempt stopped at Newton's 50-iteration "
+    "where that stopped at the iteration cap or stalled, more iterations) gave.",
+    "iteration cap": "the step failed, one more cut stopped at Newton's iteration cap or its "
+    "progress test too, and the same cut allowed more iterations converges (in the number of "
+    "iterations the detail gives): Newton gets there, in more iterations than its budget.",
+    "iteration cap while converging": "the failed attempt stopped at Newton's iteration "
     "cap with its residual still falling (to less than half over its last 10 iterations), "
     "and a retry allowed more iterations was not run or did not converge.",
     "cut budget": "the controller gave up after 6 consecutive cuts; one more cut converges.",

@@ -90,7 +90,11 @@ _DISPLAY = {
     "completed_inverted": ("C·inv", "#a6d96a", "completed, cells inverted at the end"),
     "not_at_rest": ("N", "#fee08b", "not at rest (uninverted)"),
     "stalled_inverted": ("S", "#fc8d59", "stalled inverted"),
-    "failed": ("F", "#d73027", "failed at: ls line search, lin linear solve, cap iteration cap"),
+    "failed": (
+        "F",
+        "#d73027",
+        ("failed at: ls line search, lin linear solve, stall no progress, cap iteration cap"),
+    ),
     "nan": ("NaN", "#542788", "NaN"),
     "does_not_apply": ("n/a", "#d9d9d9", "does not apply (starts inverted)"),
     "timeout": ("T", "#525252", "timeout"),
@@ -100,6 +104,7 @@ _STAGES = {
     "line search": "ls",
     "linear solve": "lin",
     "iteration cap": "cap",
+    "stalled": "stall",
     "step check": "chk",
     "NaN": "nan",
 }
@@ -305,8 +310,9 @@ def summary_lines(
         "if it stays inverted, it sits in an inverted local minimum. A failed step's last "
         "Newton iterate is examined (inverted points' singular values against the kink "
         "σ₂ + σ₃ = 0, inversion-free caps, the tangent's spectrum) and the step is retried once "
-        "with the cut step (`retry`); a retry that stops at the iteration cap is run once more "
-        "with a larger cap (`long_retry`, `long_retry_iterations`), and if that converges the "
+        "with the cut step (`retry`); a retry that stops at the iteration cap or stalls is run "
+        "once more with a larger cap and no progress test (`long_retry`, "
+        "`long_retry_iterations`), and if that converges the "
         "cause is the iteration cap.",
         "",
         "## Headline",

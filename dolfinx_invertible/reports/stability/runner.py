@@ -30,7 +30,7 @@ __all__ = [
     "run_cell",
 ]
 
-#: Newton iterations allowed in the diagnostic retry of a step that hit the iteration cap.
+#: Newton iterations allowed in the diagnostic retry of a step that hit the cap or stalled.
 LONG_SOLVE = 1000
 #: Largest tangent assembled densely for its spectrum at a failure (unknowns).
 SPECTRUM_LIMIT = 3000
@@ -136,9 +136,9 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
     ``cap_median``). The retry, from the restored last converged state with the step the
     controller cut to (below its floor or past its cuts), tells whether one more cut would
     have converged (``retry``: ``"converged"`` or the stage it failed in). A retry that
-    stopped at the iteration cap is run once more, same state and step, with
-    :data:`LONG_SOLVE` iterations allowed (``long_retry``, and ``long_retry_iterations`` when
-    it converged): does Newton get there with more iterations.
+    stopped at the iteration cap or stalled is run once more, same state and step, with
+    :data:`LONG_SOLVE` iterations allowed and no progress test (``long_retry``, and
+    ``long_retry_iterations`` when it converged): does Newton get there with more iterations.
     """
     import dolfinx
 
@@ -172,10 +172,10 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
         data["retry"] = "converged"
     except SolverError as error:
         data["retry"] = error.stage
-    if data["retry"] == "iteration cap":
-        # Would Newton get there with more iterations? Same step, a larger cap.
-        cap = minimizer.max_iterations
-        minimizer.max_iterations = LONG_SOLVE
+    if data["retry"] in ("iteration cap", "stalled"):
+        # Would Newton get there with more iterations? Same step, a larger cap, no progress test.
+        cap, window = minimizer.max_iterations, minimizer.stall_window
+        minimizer.max_iterations, minimizer.stall_window = LONG_SOLVE, None
         dynamics.controller.step = step
         try:
             data["long_retry_iterations"] = dynamics.step(remaining).newton_iterations
@@ -183,7 +183,7 @@ def _failure_diagnostics(recorder: Recorder, material) -> dict[str, Any]:
         except SolverError as error:
             data["long_retry"] = error.stage
         finally:
-            minimizer.max_iterations = cap
+            minimizer.max_iterations, minimizer.stall_window = cap, window
     return data
 
 
