@@ -212,8 +212,9 @@ def test_interleaved_jobs_follow_their_own_kind_and_rotate_the_cases():
 
 
 def test_scene_rows_take_a_budget_of_cuts():
-    # The scatter's first step at resolution 4 needs a cut: without one it stops there.
-    report = bench_scenes.run(["scatter"], [4], [1], ["direct"], 1, "gamg", 600.0, max_cuts=0)
+    # The scatter's first step at resolution 8 needs a cut (at dt Newton's budget runs out):
+    # without one it stops there.
+    report = bench_scenes.run(["scatter"], [8], [1], ["direct"], 1, "gamg", 600.0, max_cuts=0)
     (row,) = report["rows"]
     assert (row["max_cuts"], row["outcome"], row["steps"]) == (0, "failed", 0)
     assert row["cuts"] >= 1 and row["attempts"] == row["cuts"]

@@ -93,7 +93,7 @@ _DISPLAY = {
     "failed": (
         "F",
         "#d73027",
-        ("failed at: ls line search, lin linear solve, stall no progress, cap iteration cap"),
+        "failed at: ls line search, lin linear solve, stall no progress, cap iteration cap",
     ),
     "nan": ("NaN", "#542788", "NaN"),
     "does_not_apply": ("n/a", "#d9d9d9", "does not apply (starts inverted)"),
