@@ -229,7 +229,7 @@ class ConvergenceTest:
             return None
         energies = self._energies[-1 - window :]
         if energies[0] is None or energies[-1] is None:
-            return None  # no energy to judge by (a stress-only material): the cap decides
+            return None  # no energy to judge by (stress-only, a watchdog's tentative step)
         fall = energies[0] - energies[-1]
         if fall > max(STALL_ENERGY * abs(energies[-1]), rounding):
             return None

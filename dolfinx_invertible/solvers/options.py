@@ -100,10 +100,10 @@ def linear_solver_options(
             # Null-pivot detection, which PETSc needs to report the factor's inertia (the
             # minimiser reads it to tell an indefinite exact tangent).
             options["mat_mumps_icntl_24"] = 1
-            # Working space 3x MUMPS's estimate (its default: 1.2x). LDLᵀ of an indefinite
-            # tangent delays pivots beyond the estimate; at 1.2x the factorisation of a contact
-            # pile's tangent failed (DIVERGED_PCSETUP_FAILED) at every cut of a step, at 3x it
-            # passes (docs/contact.md). Only the direct path's small systems pay for it.
+            # Working space 3x MUMPS's estimate (its default: 1.2x): at 1.2x the LDLᵀ of a
+            # contact pile's indefinite tangent failed (INFOG(1) = -9, work array too small) at
+            # every cut of a step, at 3x it passes (docs/contact.md). "auto" takes this path
+            # only below DIRECT_SOLVE_LIMIT, where the extra memory is small.
             options["mat_mumps_icntl_14"] = 200
         return options
     # Each Newton system to 1e-10. Looser solves measured (docs/performance.md, "Scale"): 1e-6
