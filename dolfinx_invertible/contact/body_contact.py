@@ -3,9 +3,9 @@
 :class:`BodyContactTerm` is an energy term of a DOLFINx problem (the solvers' ``EnergyTerm``):
 the IPC barrier potential of every pair of non-adjacent surface primitives (vertex–triangle and
 edge–edge in 3D, vertex–edge in 2D) closer than d̂, its gradient in the residual and its
-SPD-projected Hessian in the tangent. :class:`SurfaceCollisionFreeStep` is its step cap (a
-``StepLimit``): continuous collision detection along the Newton direction, so that no iterate of
-the line search lets two surfaces pass through each other.
+Hessian, exact or SPD-projected, in the tangent. :class:`SurfaceCollisionFreeStep` is its step
+cap (a ``StepLimit``): continuous collision detection along the Newton direction, so that no
+iterate of the line search lets two surfaces pass through each other.
 
 What comes from IPC Toolkit (``ipctk``): the collision mesh, the broad phase (hash grid), the
 collision set and its barrier potential with gradient and projected Hessian (area-weighted),
@@ -39,7 +39,7 @@ from dolfinx_invertible.contact.barrier import (
 )
 from dolfinx_invertible.contact.friction import DEFAULT_FRICTION_VELOCITY
 from dolfinx_invertible.contact.surface import GatheredSurface
-from dolfinx_invertible.solvers.terms import StatefulTerm
+from dolfinx_invertible.solvers.terms import ProjectableHessian, StatefulTerm
 
 __all__ = ["BodyContactTerm", "SurfaceCollisionFreeStep", "SurfaceIntersectionError"]
 
@@ -120,7 +120,7 @@ def _collision_set() -> ipctk.NormalCollisions:
     return collisions
 
 
-class BodyContactTerm(StatefulTerm):
+class BodyContactTerm(StatefulTerm, ProjectableHessian):
     """Frictionless contact between (and within) the bodies of one mesh, by IPC Toolkit.
 
     Pass it to :class:`~dolfinx_invertible.HyperelasticProblem` (or
@@ -154,7 +154,10 @@ class BodyContactTerm(StatefulTerm):
         that of a layer of material one vertex spacing thick (the rule of the obstacles'
         barrier, :func:`~dolfinx_invertible.contact.barrier.barrier_stiffness`).
     project_hessian
-        Add the SPD projection of the Hessian to the tangent (default), or the exact Hessian.
+        ``None`` (default): the exact Hessian where the problem assembles its exact tangent
+        (Newton's local phase), its SPD projection (ipctk's, per collision) elsewhere
+        (:class:`~dolfinx_invertible.solvers.terms.ProjectableHessian`); ``True``: always the
+        projection; ``False``: always the exact Hessian.
     friction
         Coulomb's coefficient μ between the surfaces (0: frictionless): ipctk's lagged friction
         (``TangentialCollisions``, ``FrictionPotential``), its normal forces, tangent bases and
@@ -189,7 +192,7 @@ class BodyContactTerm(StatefulTerm):
         distance: float | None = None,
         distance_fraction: float = DEFAULT_DISTANCE_FRACTION,
         stiffness: float | None = None,
-        project_hessian: bool = True,
+        project_hessian: bool | None = None,
         friction: float = 0.0,
         friction_velocity: float = DEFAULT_FRICTION_VELOCITY,
         adaptive_stiffness: bool = True,
@@ -205,7 +208,7 @@ class BodyContactTerm(StatefulTerm):
         self._tangential: ipctk.TangentialCollisions | None = None
         self._friction_potential: ipctk.FrictionPotential | None = None
         self._slip_origin: np.ndarray | None = None
-        self.project_hessian = bool(project_hessian)
+        self._choose_projection(project_hessian)
         self.surface = GatheredSurface(u.function_space)
         self.comm = self.surface.comm
         dimension = self.surface.dimension
@@ -469,7 +472,9 @@ class BodyContactTerm(StatefulTerm):
         residual[self.surface.owned_dofs.ravel()] += gradient[self._owned_rows]
 
     def add_tangent(self, matrix: PETSc.Mat, constrained: np.ndarray) -> None:
-        """Add the SPD-projected barrier (and friction) Hessian into this rank's rows (collective).
+        """Add the barrier (and friction) Hessian into this rank's rows (collective).
+
+        The Hessian is the SPD-projected or the exact one as :attr:`projected` says.
 
         The coupling of two surface vertices that come close lies outside the finite-element
         sparsity pattern: the matrix grows, once per new pair. Every coupling this term ever
@@ -491,7 +496,7 @@ class BodyContactTerm(StatefulTerm):
                 self._tangential,
                 self.collision_mesh,
                 self._slip(positions),
-                project_hessian_to_psd=ipctk.PSDProjectionMethod.CLAMP,
+                project_hessian_to_psd=self._projection_method(),
             )
         rows = self._with_every_coupling(scipy.sparse.csr_matrix(hessian)[self._owned_rows])
         if rows.nnz == 0:
@@ -531,12 +536,11 @@ class BodyContactTerm(StatefulTerm):
             collisions,
             self.collision_mesh,
             np.asfortranarray(positions),
-            project_hessian_to_psd=(
-                ipctk.PSDProjectionMethod.CLAMP
-                if self.project_hessian
-                else ipctk.PSDProjectionMethod.NONE
-            ),
+            project_hessian_to_psd=self._projection_method(),
         )
+
+    def _projection_method(self) -> ipctk.PSDProjectionMethod:
+        return ipctk.PSDProjectionMethod.CLAMP if self.projected else ipctk.PSDProjectionMethod.NONE
 
     def __repr__(self) -> str:
         return (

@@ -1,9 +1,9 @@
 """The contact barrier as an energy term of a DOLFINx problem (the solvers' ``EnergyTerm``).
 
 :class:`ContactTerm` adds Σᵢ wᵢ Σₒ b(dₒ(Xᵢ + uᵢ, t)) over the boundary vertices to the
-potential, its gradient to the residual and its SPD-projected Hessian to the tangent. Each rank
-evaluates the boundary vertices whose displacement dofs it owns, so every vertex is counted
-once and the result does not depend on the partition.
+potential, its gradient to the residual and its Hessian (exact or SPD-projected) to the
+tangent. Each rank evaluates the boundary vertices whose displacement dofs it owns, so every
+vertex is counted once and the result does not depend on the partition.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from dolfinx_invertible.contact.obstacle import Obstacle
 from dolfinx_invertible.contact.obstacles import Obstacles
 from dolfinx_invertible.contact.potential import BarrierPotential
 from dolfinx_invertible.contact.step import CollisionFreeStep
-from dolfinx_invertible.solvers.terms import StatefulTerm
+from dolfinx_invertible.solvers.terms import ProjectableHessian, StatefulTerm
 
 __all__ = ["ContactTerm"]
 
@@ -40,7 +40,7 @@ __all__ = ["ContactTerm"]
 _SEPARATION_PASSES = 8
 
 
-class ContactTerm(StatefulTerm):
+class ContactTerm(StatefulTerm, ProjectableHessian):
     """Frictionless contact of a body with rigid (possibly moving) obstacles, as a barrier.
 
     Pass it to :class:`~dolfinx_invertible.HyperelasticProblem` (or
@@ -81,6 +81,12 @@ class ContactTerm(StatefulTerm):
         (:class:`~dolfinx_invertible.contact.friction.ObstacleFriction`).
     friction_velocity
         ε_v [m/s]: slower sliding sticks (elastically).
+    project_hessian
+        ``None`` (default): the barrier's exact Hessian where the problem assembles its exact
+        tangent (Newton's local phase; against a convex obstacle the barrier is concave along
+        the surface), each vertex block's SPD projection elsewhere
+        (:class:`~dolfinx_invertible.solvers.terms.ProjectableHessian`); ``True``: always the
+        projection; ``False``: always the exact Hessian.
 
     Attributes
     ----------
@@ -107,7 +113,9 @@ class ContactTerm(StatefulTerm):
         time: float = 0.0,
         friction: float = 0.0,
         friction_velocity: float = DEFAULT_FRICTION_VELOCITY,
+        project_hessian: bool | None = None,
     ) -> None:
+        self._choose_projection(project_hessian)
         self.u = u
         self.obstacles = Obstacles(obstacles)
         self.boundary = BoundaryVertices(u.function_space)
@@ -306,13 +314,13 @@ class ContactTerm(StatefulTerm):
         residual[self.boundary.dofs] += gradient
 
     def add_tangent(self, matrix: PETSc.Mat, constrained: np.ndarray) -> None:
-        """Add the SPD-projected barrier Hessian (a d × d block per active vertex).
+        """Add the barrier Hessian (a d × d block per active vertex), projected or exact.
 
-        With friction, its (positive semidefinite) Hessian too.
+        :attr:`projected` says which. With friction, its (positive semidefinite) Hessian too.
         """
         positions = self.positions()
         points, blocks = self.potential.hessians(
-            positions, self.boundary.weights, self.time, project=True
+            positions, self.boundary.weights, self.time, project=self.projected
         )
         if self.friction is not None:
             sliding, sliding_blocks = self.friction.hessians(positions)

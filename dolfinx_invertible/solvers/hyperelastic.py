@@ -86,7 +86,9 @@ class HyperelasticProblem:
         continuous collision detection against obstacles.
     terms
         Energy contributions that are not forms
-        (:class:`~dolfinx_invertible.solvers.problem.EnergyTerm`), e.g. a contact barrier.
+        (:class:`~dolfinx_invertible.solvers.problem.EnergyTerm`), e.g. a contact barrier. A
+        term that can switch between its exact and projected Hessian follows ``"auto"``; with
+        ``True`` or ``False`` (no replacement of a bad direction) it adds the projected one.
     elastic
         How the elastic energy is assembled: ``"kernels"`` (default, this package's numba
         kernels) or ``"ufl"`` (DOLFINx's own route, UFL compiled by FFCx: plain Neo-Hookean
@@ -158,6 +160,9 @@ class HyperelasticProblem:
             if extra_jacobian is not None:
                 jacobian.append(extra_jacobian)
         self.energy_problem = EnergyProblem(u, energy, residual, jacobian, bcs, terms=terms)
+        # Terms that follow the tangent add their exact Hessian only where the minimiser can
+        # replace a direction that is not a descent direction, i.e. with the tangent switch.
+        self.energy_problem.set_term_projection(project != "auto")
         limits = list(step_limits)
         if inversion_free is not None:
             limits.append(
@@ -170,12 +175,16 @@ class HyperelasticProblem:
             linear_solver=linear_solver,
             pc=pc,
             step_limits=limits,
-            tangent_switch=self.forms.set_projection if project == "auto" else None,
+            tangent_switch=self._switch_tangent if project == "auto" else None,
             tangent="projected" if project is True else "exact",
             displacement_tolerance=displacement_tolerance,
             blend_after=blend_after,
             globalization=globalization,
         )
+
+    def _switch_tangent(self, projected: bool) -> None:
+        self.forms.set_projection(projected)
+        self.energy_problem.set_term_projection(projected)
 
     def add_monitor(
         self,

@@ -378,6 +378,7 @@ class EnergyMinimizer:
             truncated = directions.truncated
             self.trust_region.update(
                 fraction=fraction,
+                cap=largest,
                 step_norm=truncated.step_norm if math.isfinite(slope) else math.nan,
                 boundary=truncated.boundary,
                 actual=search.decrease,

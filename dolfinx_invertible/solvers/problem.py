@@ -31,7 +31,10 @@ _SUBSET_PATTERN = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 class EnergyTerm(Protocol):
     """A contribution to Π that is not a DOLFINx form, e.g. a contact barrier.
 
-    Evaluated at the current ``u`` of the problem (owned values and ghosts up to date).
+    Evaluated at the current ``u`` of the problem (owned values and ghosts up to date). A term
+    that can add its exact Hessian or its SPD projection also has ``set_projection(projected)``
+    (:class:`~dolfinx_invertible.solvers.terms.ProjectableHessian`), which
+    :meth:`EnergyProblem.set_term_projection` calls.
     """
 
     def energy(self) -> float:
@@ -228,6 +231,13 @@ class EnergyProblem:
         if len(self.jacobian_forms) > 1:
             matrix.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         return matrix
+
+    def set_term_projection(self, projected: bool) -> None:
+        """Tell the terms that can switch to add their projected (or exact) Hessian."""
+        for term in self.terms:
+            switch = getattr(term, "set_projection", None)
+            if switch is not None:
+                switch(projected)
 
     def update_solution(self, x: PETSc.Vec) -> None:
         """Copy the owned values of ``x`` into ``u`` and update the ghosts of ``u``."""

@@ -17,13 +17,18 @@ declares and
 
 Each method has a default that does nothing, so a term implements what it has. Outside a scene
 run, a script calls them itself (e.g. ``boundary_update=term.start_step``).
+
+A term whose Hessian has negative curvature (a contact barrier: its distance is concave along
+the surfaces) can add the exact Hessian or its SPD projection; :class:`ProjectableHessian` lets
+it follow the problem's tangent, exact in Newton's local phase and projected outside it, so that
+Newton converges quadratically near a solution instead of linearly.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["StatefulTerm", "stateful_terms"]
+__all__ = ["ProjectableHessian", "StatefulTerm", "stateful_terms"]
 
 
 class StatefulTerm:
@@ -58,6 +63,33 @@ class StatefulTerm:
 
     def restore(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`checkpoint_state`."""
+
+
+class ProjectableHessian:
+    """A term's choice between its exact Hessian and its SPD projection.
+
+    ``project_hessian`` ``None`` follows the problem: :class:`~dolfinx_invertible.
+    HyperelasticProblem` with ``project="auto"`` calls :meth:`set_projection` with the tangent
+    it assembles (exact in Newton's local phase, where the minimiser replaces a direction that
+    is not a descent direction by the projected tangent's); with a fixed ``project`` it asks for
+    the projected Hessian, since nothing would replace a bad direction. ``True`` or ``False``
+    fix the choice. Until a problem says otherwise, a term that follows adds the projected
+    Hessian.
+    """
+
+    def _choose_projection(self, project_hessian: bool | None) -> None:
+        if not (project_hessian is None or isinstance(project_hessian, bool)):
+            raise ValueError(
+                f"project_hessian must be None, True or False, got {project_hessian!r}"
+            )
+        self.project_hessian = project_hessian
+        #: Whether the Hessian added now is the SPD-projected one.
+        self.projected = True if project_hessian is None else project_hessian
+
+    def set_projection(self, projected: bool) -> None:
+        """Add the projected (``True``) or exact Hessian from now on, unless the choice is fixed."""
+        if self.project_hessian is None:
+            self.projected = bool(projected)
 
 
 def stateful_terms(terms) -> list[StatefulTerm]:

@@ -12,8 +12,12 @@ how well Newton's quadratic model predicted the energy's decrease:
 
 for the step s taken. The radius halves to the step's length where ρ < 1/4, doubles where ρ > 3/4
 and the full step ended on the boundary, and shrinks to the step's length where the line search
-shortened it. A solve starts without a bound: its first direction is the exact (or, at negative
-curvature, the projected) Newton direction, and its accepted length sets Δ.
+shortened it. A step limit's cap (continuous collision detection stopping the step before two
+surfaces meet) says where the step must end, not how far the model holds, and leaves the radius:
+shrunk to every capped length, the radius would keep the next iterations as short as the
+closest pending contact made this one, long after the contact has entered the barrier. A solve
+starts without a bound: its first direction is the exact (or, at negative curvature, the
+projected) Newton direction, and its length, as far as the line search accepted it, sets Δ.
 
 Where the projected tangent drops all of a cell's negative curvature, Newton on it converges
 linearly along a valley of the energy (docs/performance.md, "Scale"): a trust region uses the
@@ -56,6 +60,7 @@ class TrustRegion:
         self,
         *,
         fraction: float,
+        cap: float = 1.0,
         step_norm: float,
         boundary: bool,
         actual: float,
@@ -68,6 +73,8 @@ class TrustRegion:
         ----------
         fraction
             The share of the direction taken (the step limits' cap times the line search's).
+        cap
+            The step limits' share alone (1 where no limit capped the step).
         step_norm
             The direction's norm in the preconditioner's norm (``nan`` where unknown: the radius
             is then left as it is).
@@ -86,8 +93,10 @@ class TrustRegion:
         else:
             self.ratio = actual / predicted if predicted > 0.0 else -math.inf
         length = fraction * step_norm
-        if not math.isfinite(self.radius) or fraction < 1.0:
+        if fraction < cap:  # the line search shortened the step: the model held only so far
             self.radius = length
+        elif not math.isfinite(self.radius):
+            self.radius = length / cap
         reached = boundary or length >= self.radius
         if self.ratio < self.SHRINK_BELOW:
             self.radius = 0.5 * length

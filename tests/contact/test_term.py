@@ -319,3 +319,52 @@ def test_default_parameters_follow_the_rules():
     assert custom.barrier.distance == pytest.approx(0.3 * h)
     fixed = ContactTerm(u, HalfSpace((0.0, 0.0, 1.0), -0.1), stiffness=5.0, distance=0.2)
     assert (fixed.barrier.stiffness, fixed.barrier.distance) == (5.0, 0.2)
+
+
+@pytest.mark.mpi
+def test_the_hessian_is_exact_or_projected_as_the_problem_asks():
+    # A ball just above the cube's top: there the barrier is concave along the surface, so its
+    # exact Hessian (what finite differences of the residual give) is indefinite and differs
+    # from the projection.
+    ball = Sphere((0.5, 0.5, 1.0 + 0.3 + 0.03), 0.3)
+    mesh = dolfinx.mesh.create_unit_cube(COMM, 3, 3, 3)
+    u = displacement(mesh)
+    term = ContactTerm(u, ball, MATERIAL, distance=0.12)
+    assert term.project_hessian is None and term.projected  # no problem has asked yet
+    assert allsum(COMM, term.active_vertices()) > 0
+    problem = di.HyperelasticProblem(u, MATERIAL, terms=[term])
+    assert not term.projected  # "auto": exact, replaced where it gives no descent
+    matrices = {}
+    for projected in (True, False):
+        problem.energy_problem.set_term_projection(projected)
+        matrices[projected] = tangent_matrix(u.function_space)
+        term.add_tangent(matrices[projected], np.zeros(0, dtype=np.int32))
+        matrices[projected].assemble()
+    exact, positive = matrices[False], matrices[True]
+    epsilon = 1e-6
+    direction = random_direction(u, 3)
+    values = shifted(u, direction, epsilon)
+    residual_plus = residual_vector(term, u)
+    u.x.array[:] = values - epsilon * direction.x.array
+    residual_minus = residual_vector(term, u)
+    u.x.array[:] = values
+    fd = residual_plus.copy()
+    fd.axpy(-1.0, residual_minus)
+    fd.scale(1.0 / (2 * epsilon))
+    direction_vector = _compat.petsc_vector(direction)
+    product = fd.duplicate()
+    exact.mult(direction_vector, product)
+    product.axpy(-1.0, fd)
+    assert product.norm() <= 1e-6 * fd.norm()
+    difference = exact.copy()
+    difference.axpy(-1.0, positive)
+    assert difference.norm() > 1e-3 * positive.norm()
+    # The problem's fixed tangents ask for the projection: nothing would replace a bad direction.
+    for project in (True, False):
+        di.HyperelasticProblem(u, MATERIAL, terms=[term], project=project)
+        assert term.projected
+    fixed = ContactTerm(u, ball, MATERIAL, distance=0.12, project_hessian=False)
+    di.HyperelasticProblem(u, MATERIAL, terms=[fixed], project=True)
+    assert not fixed.projected
+    with pytest.raises(ValueError, match="project_hessian"):
+        ContactTerm(u, ball, MATERIAL, project_hessian="yes")

@@ -49,6 +49,15 @@ def test_a_shortened_step_sets_the_radius_to_the_length_taken():
     assert _step(region, fraction=0.25, step_norm=4.0, actual=0.1) == 0.5
 
 
+def test_a_step_limits_cap_leaves_the_radius():
+    # Collision detection stopping a step short says nothing of how far the model holds.
+    region = TrustRegion()
+    assert _step(region, fraction=0.05, cap=0.05, step_norm=4.0, boundary=False) == 4.0
+    assert _step(region, fraction=0.1, cap=0.1, step_norm=4.0) == 4.0
+    # Shortened by the line search after the cap: as far as the model held.
+    assert _step(region, fraction=0.05, cap=0.1, step_norm=4.0, actual=0.5) == 0.2
+
+
 def test_decreases_below_rounding_count_as_agreement():
     region = TrustRegion()
     region.radius = 4.0
