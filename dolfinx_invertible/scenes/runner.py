@@ -117,9 +117,11 @@ def _advance(run: Run, observers: list[RunObserver], output: Path | None) -> Non
                     observer.start(run)
 
             def step_done(t: float, result) -> None:
-                run.store(result)
-                run.scene.record(run)
+                # Counted and written as one: an interruption between the two would leave a
+                # summary with one step more than the output.
                 with signals.deferred():
+                    run.store(result)
+                    run.scene.record(run)
                     for observer in observers:
                         observer.step(run)
 
