@@ -68,13 +68,13 @@ class StatefulTerm:
 class ProjectableHessian:
     """A term's choice between its exact Hessian and its SPD projection.
 
-    ``project_hessian`` ``None`` follows the problem: :class:`~dolfinx_invertible.
-    HyperelasticProblem` with ``project="auto"`` calls :meth:`set_projection` with the tangent
-    it assembles (exact in Newton's local phase, where the minimiser replaces a direction that
-    is not a descent direction by the projected tangent's); with a fixed ``project`` it asks for
-    the projected Hessian, since nothing would replace a bad direction. ``True`` or ``False``
-    fix the choice. Until a problem says otherwise, a term that follows adds the projected
-    Hessian.
+    ``project_hessian`` ``None`` follows the problem:
+    :class:`~dolfinx_invertible.HyperelasticProblem` with ``project="auto"`` calls
+    :meth:`set_projection` with the tangent it assembles (exact in Newton's local phase, where
+    the minimiser replaces a direction that is not a descent direction by the projected
+    tangent's); with a fixed ``project`` it asks for the projected Hessian, since nothing would
+    replace a bad direction. ``True`` or ``False`` fix the choice. Until a problem says
+    otherwise, a term that follows adds the projected Hessian.
     """
 
     def _choose_projection(self, project_hessian: bool | None) -> None:
