@@ -139,6 +139,19 @@ def shifted(u, direction, epsilon):
     return values
 
 
+def central_differences(term, u, direction, epsilon=1e-6):
+    """The energies at u ± ε·direction and the residual's central difference along it."""
+    values = shifted(u, direction, epsilon)
+    plus, residual_plus = global_energy(term), residual_vector(term, u)
+    u.x.array[:] = values - epsilon * direction.x.array
+    minus, residual_minus = global_energy(term), residual_vector(term, u)
+    u.x.array[:] = values
+    fd = residual_plus.copy()
+    fd.axpy(-1.0, residual_minus)
+    fd.scale(1.0 / (2 * epsilon))
+    return plus, minus, fd
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("degree", [1, 2])
 def test_residual_and_tangent_are_derivatives_of_the_energy(degree):
@@ -154,17 +167,10 @@ def test_residual_and_tangent_are_derivatives_of_the_energy(degree):
     for seed in range(3):
         direction = random_direction(u, seed)
         direction_vector = _compat.petsc_vector(direction)
-        values = shifted(u, direction, epsilon)
-        plus, residual_plus = global_energy(term), residual_vector(term, u)
-        u.x.array[:] = values - epsilon * direction.x.array
-        minus, residual_minus = global_energy(term), residual_vector(term, u)
-        u.x.array[:] = values
+        plus, minus, fd = central_differences(term, u, direction, epsilon)
         slope = residual.dot(direction_vector)
         assert slope == pytest.approx((plus - minus) / (2 * epsilon), rel=1e-6)
         matrix.mult(direction_vector, product)
-        fd = residual_plus.copy()
-        fd.axpy(-1.0, residual_minus)
-        fd.scale(1.0 / (2 * epsilon))
         difference = product.copy()
         difference.axpy(-1.0, fd)
         assert difference.norm() <= 1e-6 * fd.norm()
@@ -341,16 +347,8 @@ def test_the_hessian_is_exact_or_projected_as_the_problem_asks():
         term.add_tangent(matrices[projected], np.zeros(0, dtype=np.int32))
         matrices[projected].assemble()
     exact, positive = matrices[False], matrices[True]
-    epsilon = 1e-6
     direction = random_direction(u, 3)
-    values = shifted(u, direction, epsilon)
-    residual_plus = residual_vector(term, u)
-    u.x.array[:] = values - epsilon * direction.x.array
-    residual_minus = residual_vector(term, u)
-    u.x.array[:] = values
-    fd = residual_plus.copy()
-    fd.axpy(-1.0, residual_minus)
-    fd.scale(1.0 / (2 * epsilon))
+    _, _, fd = central_differences(term, u, direction)
     direction_vector = _compat.petsc_vector(direction)
     product = fd.duplicate()
     exact.mult(direction_vector, product)
