@@ -16,8 +16,9 @@ falling, and stops early, at the stage ``"stalled"``, once over the last :data:`
 iterations the smallest residual so far has not halved and the energy has fallen by less than
 :data:`STALL_ENERGY` of its magnitude (above its rounding error): a step that cannot be taken
 is then cut after a few dozen iterations. ``snes_max_it`` stays as a safeguard, far above what
-a converging solve needs (default 200: the collapse at 32³ × 6 cells converges its first step in
-89–132 iterations, its energy falling all the way). A solve that is still descending is never
+a converging solve needs (default 200: with the trust region's boundary steps, the collapse at
+32³ × 6 cells converged its first step in 89–132 iterations, its energy falling all the way).
+A solve that is still descending is never
 stopped by the progress test: how long a crawl through a non-convex energy lasts does not show in
 its rates (the same solve's last three iterations take the residual from 4e-3 to 2e-6).
 """

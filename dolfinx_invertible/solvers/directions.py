@@ -28,6 +28,22 @@ operator CG runs on, as plain Newton–CG. Where it meets negative curvature (or
 definite) the iteration's direction is computed again with AMG on the projected tangent K₊ (the
 truncated CG on K, then on K₊ or a blend), and K₊ preconditions the exact iterations until one
 of them meets no negative curvature again.
+
+In Newton's local phase on the iterative path — after the first iteration of a solve, the last
+step full, not bounded by a trust region, and its decrease of the energy at least 3/4 of what
+its quadratic model predicted (ρ, the trust region's test for growing its radius) — the
+truncated CG meets negative curvature with MINRES on the exact system and keeps that direction
+where it is one of descent (:attr:`NewtonDirections.indefinite_newton`, :mod:`.truncated_cg`).
+The iterates then converge quadratically to the stationary point they are closing in on, even
+where it is a saddle of the step's energy: the collapse at 32³ × 6 cells takes its first step
+in 6 iterations, where the projected tangent crawls towards the same point at 0.97 an
+iteration and the trust region left it for an inverted minimum after 89–132
+(docs/performance.md). Outside the local phase the exact direction, even where it descends,
+is a poor one (the tangled scatter at 8³ × 6 cells: 1 784 Newton iterations with it in every
+iteration of the line search, 873 with the trust region), so nothing changes there. The direct
+path keeps the inertia test: out of a collapsed cube at ν = 0.499 the exact direction in its
+local phase led the step to another stationary point (537 263 J against 714 975 J), and the
+escalation's blend from 16 iterations to 198.
 """
 
 from __future__ import annotations
@@ -153,6 +169,9 @@ class NewtonDirections:
         The :class:`~dolfinx_invertible.solvers.trust_region.TrustRegion` whose radius bounds
         the truncated CG's directions, and with which every iteration takes the exact tangent;
         ``None`` (default): no bound, and the projected tangent outside Newton's local phase.
+    indefinite_newton
+        Keep the exact direction past negative curvature in Newton's local phase (see the
+        module description).
 
     Attributes
     ----------
@@ -166,6 +185,14 @@ class NewtonDirections:
         blend included) and from a blend.
     replacement_linear_iterations
         Krylov iterations of the current iteration's replacement solves.
+    indefinite_newton
+        Whether Newton's local phase keeps the exact tangent's direction past negative
+        curvature where it descends (see the module description).
+    local_phase
+        Whether the current iteration is in Newton's local phase (the module description).
+    model_ratio
+        ρ of the last step: its energy decrease over its quadratic model's (``nan`` before
+        the first, or where the step was not measured).
     exact_preconditioner
         Whether the next exact iteration of the iterative path preconditions with AMG on the
         exact tangent (no negative curvature met in the last one) rather than the projected.
@@ -188,6 +215,7 @@ class NewtonDirections:
         assembled: Callable[[PETSc.Mat], None],
         tangent: str = "exact",
         trust_region: TrustRegion | None = None,
+        indefinite_newton: bool = True,
     ) -> None:
         if blend_after is not None and (int(blend_after) != blend_after or blend_after < 0):
             raise ValueError(f"blend_after must be an integer >= 0 or None, got {blend_after!r}")
@@ -210,6 +238,7 @@ class NewtonDirections:
             self.preconditioner = problem.create_matrix()
             self.preconditioner.setNearNullSpace(near_nullspace)
         self.exact_preconditioner = True
+        self.indefinite_newton = bool(indefinite_newton)
         self.preconditioned_by = "projected"
         self.direction_tangent: PETSc.Mat | None = self.matrix
         self._projected = ProjectedTangent()
@@ -238,6 +267,11 @@ class NewtonDirections:
     def start_solve(self) -> None:
         """Begin a solve: the exact tangent first, no replacements counted."""
         self._exact_next = True
+        self.local_phase = False
+        self._full_step = True
+        self._last_kind = self.tangent
+        self.model_ratio = math.nan
+        self._steps = 0
         self.projected_now = False
         self.projected_iterations = 0
         self.blended_iterations = 0
@@ -260,8 +294,15 @@ class NewtonDirections:
         self.projected_now = projected
         self.kind = ProjectedTangent.kind if projected else self.tangent
         self.replacement_linear_iterations = 0
+        self.local_phase = (
+            self._steps > 0
+            and self._full_step
+            and self._last_kind != BOUNDED
+            and self.model_ratio > TrustRegion.GROW_ABOVE
+        )
         if self.truncated is not None:
             self.truncated.blend = self._blending()
+            self.truncated.indefinite = self.indefinite_newton and self.local_phase
             if self.trust_region is not None:
                 self.truncated.radius = self.trust_region.radius
         self._assemble_tangent_into(x, A, projected)
@@ -321,6 +362,9 @@ class NewtonDirections:
     def after_step(self, full_step: bool) -> None:
         """Choose the next tangent: the exact one after a full step, or in a trust region."""
         self._exact_next = full_step or self.trust_region is not None
+        self._full_step = full_step
+        self._last_kind = self.kind
+        self._steps += 1
 
     # -- judging and replacing --------------------------------------------------------------
     def judge(self, ksp: PETSc.KSP, y: PETSc.Vec, *, has_energy: bool) -> tuple[bool, str]:
@@ -333,7 +377,9 @@ class NewtonDirections:
         truncated = self.truncated
         if truncated is not None and not self.projected_now:
             if reason > 0 and self.preconditioned_by == "projected":
-                self.exact_preconditioner = truncated.outcome == "exact"
+                self.exact_preconditioner = (
+                    truncated.outcome == "exact" and truncated.curvature_iteration is None
+                )
             if truncated.outcome in (ProjectedTangent.kind, BlendedTangent.kind):
                 # Negative curvature: the truncated CG solved with the projected tangent or a
                 # definite blend instead.

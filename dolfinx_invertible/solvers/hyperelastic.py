@@ -72,7 +72,7 @@ class HyperelasticProblem:
         were used (``"exact+projected"`` for both), ``result.projected_iterations`` how often
         the projected one stepped in.
     petsc_options, options_prefix, linear_solver, pc, displacement_tolerance, blend_after,
-    globalization
+    globalization, indefinite_newton
         See :class:`~dolfinx_invertible.solvers.minimizer.EnergyMinimizer`; command-line options
         with the prefix override everything.
     inversion_free
@@ -123,6 +123,7 @@ class HyperelasticProblem:
         elastic: str = "kernels",
         blend_after: int | None = None,
         globalization: str = "auto",
+        indefinite_newton: bool = True,
     ):
         mesh = u.function_space.mesh
         allowed = [choice.value for choice in TANGENTS.values()]
@@ -180,6 +181,7 @@ class HyperelasticProblem:
             displacement_tolerance=displacement_tolerance,
             blend_after=blend_after,
             globalization=globalization,
+            indefinite_newton=indefinite_newton,
         )
 
     def _switch_tangent(self, projected: bool) -> None:

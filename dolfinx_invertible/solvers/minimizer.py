@@ -28,7 +28,7 @@ from dolfinx_invertible.solvers.options import DEFAULT_OPTIONS_PREFIX, Minimizer
 from dolfinx_invertible.solvers.problem import EnergyProblem
 from dolfinx_invertible.solvers.results import SolveResult
 from dolfinx_invertible.solvers.step_limit import StepLimit
-from dolfinx_invertible.solvers.trust_region import TrustRegion
+from dolfinx_invertible.solvers.trust_region import TrustRegion, agreement
 
 __all__ = ["EnergyMinimizer"]
 
@@ -126,6 +126,14 @@ class EnergyMinimizer:
         without the watchdog. Needs the iterative path (conjugate gradients), an energy and a
         ``tangent_switch``. ``"auto"`` (default): the trust region where it applies, else the
         line search.
+    indefinite_newton
+        In Newton's local phase on the iterative path (the last step full and its energy
+        decrease at least 3/4 of its quadratic model's), keep the exact tangent's direction
+        past negative curvature where it is one of descent, solved by MINRES
+        (:mod:`.directions`): the iterates then converge quadratically to the stationary point
+        they approach, a saddle of the step's energy included. ``False`` takes the projected
+        tangent (line search) or the trust region's boundary there. The direct path keeps its
+        inertia test either way.
 
     Attributes
     ----------
@@ -164,6 +172,7 @@ class EnergyMinimizer:
         watchdog_steps: int = 2,
         blend_after: int | None = None,
         globalization: str = "auto",
+        indefinite_newton: bool = True,
     ) -> None:
         GLOBALIZATIONS.check(globalization)
         self.problem = problem
@@ -193,6 +202,7 @@ class EnergyMinimizer:
             blend_after=blend_after,
             assembled=self.tolerances.record_stiffness,
             tangent=tangent,
+            indefinite_newton=indefinite_newton,
         )
         self._search = EnergyLineSearch(
             problem,
@@ -326,6 +336,7 @@ class EnergyMinimizer:
         has_energy = self.problem.has_energy
         monitors = self._monitors
         monitors.start_direction()
+        directions.model_ratio = math.nan  # until a step is taken and measured
         directions.settle(x, y, ksp)
         ok, why = directions.judge(ksp, y, has_energy=has_energy)
         directions.count_iteration()
@@ -364,17 +375,18 @@ class EnergyMinimizer:
             return
         # Options may have replaced the truncated CG for a while (options_override).
         bounded = self.trust_region is not None and directions.truncated is not None
-        if bounded:
-            slope, curvature = self._model_terms(y)
+        slope, curvature = self._model_terms(y) if has_energy else (math.nan, math.nan)
         if largest < 1.0:
             y.scale(largest)
         search.full_step = largest == 1.0
         monitors.step_length = largest
-        if has_energy:
-            self._stop(search.backtrack(x, y, self._residual))
-            monitors.step_length *= search.fraction
+        if not has_energy:
+            return
+        self._stop(search.backtrack(x, y, self._residual))
+        fraction = monitors.step_length = largest * search.fraction
+        predicted = fraction * slope - 0.5 * fraction**2 * curvature
+        directions.model_ratio = agreement(search.decrease, predicted, search.rounding_error)
         if bounded:
-            fraction = monitors.step_length
             truncated = directions.truncated
             self.trust_region.update(
                 fraction=fraction,
@@ -382,7 +394,7 @@ class EnergyMinimizer:
                 step_norm=truncated.step_norm if math.isfinite(slope) else math.nan,
                 boundary=truncated.boundary,
                 actual=search.decrease,
-                predicted=fraction * slope - 0.5 * fraction**2 * curvature,
+                predicted=predicted,
                 rounding=search.rounding_error,
             )
 

@@ -20,6 +20,14 @@ norm), or where it meets negative curvature, at the point of the ball's boundary
 search direction. The CG iterates grow monotonically in that norm and lower the quadratic model
 monotonically, so the step is always one of descent and uses the negative curvature instead of
 dropping it (:mod:`.trust_region`).
+
+With :attr:`TruncatedCG.indefinite` (set by the direction policy in Newton's local phase,
+:mod:`.directions`) the solver meets negative curvature with preconditioned MINRES on K instead,
+the same preconditioner, for the exact Newton direction K⁻¹b, and keeps it where it is one of
+descent (bᵀx > 0); otherwise it goes on as above (the projected tangent, a blend, or the
+boundary). Near a saddle point of the step's energy that the iterates approach by descent, the
+exact direction converges quadratically to it, where the projected one converges linearly to the
+same point and the trust region's boundary steps leave it for a minimum much further away.
 """
 
 from __future__ import annotations
@@ -49,6 +57,8 @@ BLEND_MARGIN = 1.0 - 1.0 / 512.0
 SMALLEST_WEIGHT = 1.0 / 64.0
 #: Restarts with a lower weight before the projected tangent is taken.
 MAX_RESTARTS = 6
+#: Work vectors: CG's five, MINRES's nine.
+_WORK_VECTORS = 9
 #: The outcome of a solve that stopped on the trust region's boundary.
 BOUNDED = "bounded"
 
@@ -60,6 +70,9 @@ class TruncatedCG:
     ----------
     operator
         The exact tangent K; ``None`` uses the KSP's operator (then K₊ alone).
+    indefinite
+        Past negative curvature, solve K x = b by MINRES and keep x where bᵀx > 0 (see the
+        module description); default ``False``.
     blend
         Past negative curvature, solve with the blend w K + (1 − w) K₊ of the largest weight
         that the directions met allow (restarting from the iterate reached), rather than with
@@ -88,6 +101,7 @@ class TruncatedCG:
 
     def __init__(self) -> None:
         self.operator: PETSc.Mat | None = None
+        self.indefinite = False
         self.blend = False
         self.restart = True
         self.weight = 1.0
@@ -117,7 +131,7 @@ class TruncatedCG:
 
     def _vectors(self, b: PETSc.Vec) -> list[PETSc.Vec]:
         if self._work is None or self._work[0].getSizes() != b.getSizes():
-            self._work = [b.duplicate() for _ in range(5)]
+            self._work = [b.duplicate() for _ in range(_WORK_VECTORS)]
         return self._work
 
     def solve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
@@ -126,7 +140,7 @@ class TruncatedCG:
         exact = projected if self.operator is None else self.operator
         pc = ksp.getPC()
         rtol, atol, _, max_it = ksp.getTolerances()
-        _, z, _, _, _ = self._vectors(b)
+        z = self._vectors(b)[1]
         pc.apply(b, z)
         bz = b.dot(z)
         self.curvature_iteration = None
@@ -139,14 +153,24 @@ class TruncatedCG:
         target = max(rtol * math.sqrt(bz), atol)
         x.set(0.0)
         weight, iterations, restarts = 1.0, 0, 0
+        indefinite = self.indefinite and self.restart
         while True:
             reason, iterations, limit = self._cg(
-                ksp, exact, projected, weight, b, x, target, iterations, max_it
+                ksp, exact, projected, weight, b, x, target, iterations, max_it, indefinite
             )
             if reason != _compat.KSP_CONVERGED_NEGATIVE_CURVATURE or self.boundary:
                 break
             if self.curvature_iteration is None:
                 self.curvature_iteration = iterations
+            if indefinite:
+                indefinite = False
+                reason, iterations = self._minres(ksp, exact, b, x, target, iterations, max_it)
+                if reason > 0 and b.dot(x) > 0.0:
+                    break
+                reason = _compat.KSP_CONVERGED_NEGATIVE_CURVATURE
+                if math.isfinite(self.radius):  # Steihaug–Toint's step after all
+                    x.set(0.0)
+                    continue
             if not self.restart:
                 reason = _REASONS.DIVERGED_INDEFINITE_MAT
                 break
@@ -172,7 +196,7 @@ class TruncatedCG:
         ksp.setIterationNumber(iterations)
         ksp.setConvergedReason(reason)
 
-    def _cg(self, ksp, exact, projected, weight, b, x, target, start, max_it):
+    def _cg(self, ksp, exact, projected, weight, b, x, target, start, max_it, indefinite=False):
         """Preconditioned CG on w K + (1 − w) K₊ from ``x``; return (reason, iterations, w*).
 
         Stops at a search direction p of non-positive curvature unless w = 0 (then K₊ alone,
@@ -181,7 +205,7 @@ class TruncatedCG:
         recurrences and stops on the boundary of a finite :attr:`radius` (at negative curvature
         too, where ``restart`` allows it).
         """
-        r, z, p, q, k = self._vectors(b)
+        r, z, p, q, k = self._vectors(b)[:5]
         pc = ksp.getPC()
 
         def apply(vector, result) -> tuple[float, float]:
@@ -227,7 +251,7 @@ class TruncatedCG:
             curvature = p.dot(q)
             if not math.isfinite(curvature):
                 return _REASONS.DIVERGED_NANORINF, iteration, math.nan
-            if curvature <= 0.0 and bounded and self.restart:
+            if curvature <= 0.0 and bounded and self.restart and not indefinite:
                 self._to_boundary(x, p, xx, xp, pp)
                 return _compat.KSP_CONVERGED_NEGATIVE_CURVATURE, iteration, math.nan
             if curvature <= 0.0:
@@ -265,6 +289,68 @@ class TruncatedCG:
             p.aypx(beta, z)
             rz = rz_next
         return _REASONS.DIVERGED_MAX_IT, iteration, math.nan
+
+    def _minres(self, ksp, exact, b, x, target, start, max_it) -> tuple[int, int]:
+        """Preconditioned MINRES on K from x = 0; return (reason, iterations).
+
+        K symmetric and indefinite, the preconditioner M symmetric positive definite (Paige and
+        Saunders 1975, with Lanczos in M⁻¹'s inner product); the residual is measured in M⁻¹'s
+        norm, as CG's, and falls monotonically.
+        """
+        v_old, v, v_new, z, z_new, w_old, w, w_new, q = self._vectors(b)[:9]
+        pc = ksp.getPC()
+        x.set(0.0)
+        v_old.set(0.0)
+        w_old.set(0.0)
+        w.set(0.0)
+        b.copy(v)
+        pc.apply(v, z)
+        gamma = math.sqrt(max(v.dot(z), 0.0))
+        gamma_old, eta = 1.0, gamma
+        c_old, c, s_old, s = 1.0, 1.0, 0.0, 0.0
+        iteration = start
+        while iteration < max_it and gamma > 0.0:
+            z.scale(1.0 / gamma)
+            exact.mult(z, q)
+            delta = z.dot(q)
+            # v_new = K z − (δ/γ) v − (γ/γ_old) v_old
+            q.copy(v_new)
+            v_new.axpy(-delta / gamma, v)
+            v_new.axpy(-gamma / gamma_old, v_old)
+            pc.apply(v_new, z_new)
+            gamma_new_squared = v_new.dot(z_new)
+            if not (math.isfinite(gamma_new_squared) and gamma_new_squared >= 0.0):
+                return _REASONS.DIVERGED_INDEFINITE_PC, iteration
+            gamma_new = math.sqrt(gamma_new_squared)
+            alpha0 = c * delta - c_old * s * gamma
+            alpha1 = math.hypot(alpha0, gamma_new)
+            alpha2 = s * delta + c_old * c * gamma
+            alpha3 = s_old * gamma
+            if alpha1 == 0.0:
+                return _REASONS.DIVERGED_BREAKDOWN, iteration
+            c_new, s_new = alpha0 / alpha1, gamma_new / alpha1
+            # w_new = (z − α₃ w_old − α₂ w) / α₁
+            z.copy(w_new)
+            w_new.axpy(-alpha3, w_old)
+            w_new.axpy(-alpha2, w)
+            w_new.scale(1.0 / alpha1)
+            x.axpy(c_new * eta, w_new)
+            eta = -s_new * eta
+            iteration += 1
+            norm = abs(eta)
+            ksp.setResidualNorm(norm)
+            ksp.logConvergenceHistory(norm)
+            ksp.monitor(iteration, norm)
+            if not math.isfinite(norm):
+                return _REASONS.DIVERGED_NANORINF, iteration
+            if norm <= target:
+                return _REASONS.CONVERGED_RTOL, iteration
+            v, v_old, v_new = v_new, v, v_old
+            z, z_new = z_new, z
+            w_old, w, w_new = w, w_new, w_old
+            gamma_old, gamma = gamma, gamma_new
+            c_old, c, s_old, s = c, c_new, s, s_new
+        return _REASONS.DIVERGED_MAX_IT, iteration
 
     def _to_boundary(self, x, p, xx: float, xp: float, pp: float) -> None:
         """Move ``x`` along ``p`` (σ ≥ 0) to ‖x + σp‖_M = :attr:`radius`."""

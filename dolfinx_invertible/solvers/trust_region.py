@@ -29,7 +29,18 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["TrustRegion"]
+__all__ = ["TrustRegion", "agreement"]
+
+
+def agreement(actual: float, predicted: float, rounding: float) -> float:
+    """ρ: the energy's actual decrease over a step against its quadratic model's prediction.
+
+    1 where both are below the energy's rounding error (they then say nothing), −∞ where the
+    model predicted no decrease.
+    """
+    if abs(actual) <= rounding and abs(predicted) <= rounding:
+        return 1.0
+    return actual / predicted if predicted > 0.0 else -math.inf
 
 
 class TrustRegion:
@@ -86,12 +97,9 @@ class TrustRegion:
         rounding
             The energy's rounding error: below it the decreases say nothing, and ρ counts as 1.
         """
+        self.ratio = agreement(actual, predicted, rounding)
         if not (math.isfinite(step_norm) and step_norm > 0.0 and fraction > 0.0):
             return
-        if abs(actual) <= rounding and abs(predicted) <= rounding:
-            self.ratio = 1.0
-        else:
-            self.ratio = actual / predicted if predicted > 0.0 else -math.inf
         length = fraction * step_norm
         if fraction < cap:  # the line search shortened the step: the model held only so far
             self.radius = length

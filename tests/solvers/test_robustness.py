@@ -19,7 +19,7 @@ import pytest
 import ufl
 
 from dolfinx_invertible import C2, Material, NeoHookean, _compat, lame
-from dolfinx_invertible.scenes import Parameters, get_scene, run_scene
+from dolfinx_invertible.scenes import Parameters, RunObserver, get_scene, run_scene
 from dolfinx_invertible.solvers import HyperelasticProblem, ImplicitDynamics, SolverError
 
 SCALES = (1.0e-6, 1.0e-3, 1.0, 1.0e3, 1.0e6)
@@ -297,3 +297,49 @@ def test_the_default_budget_takes_the_step_the_cap_of_fifty_could_not():
     assert result.converged and result.newton_iterations > 50
     assert dynamics.controller.escalations == 0
     assert dynamics.controller.statistics()["cuts"] < 6
+
+
+class _ExactPastCurvature(RunObserver):
+    """Counts iterations whose direction is the exact one although CG met negative curvature."""
+
+    def __init__(self):
+        self.count = 0
+
+    def iteration(self, run, iteration) -> None:
+        truncated = run.minimizer.directions.truncated
+        if iteration.iteration > 0 and truncated is not None:
+            met = truncated.curvature_iteration is not None
+            self.count += int(met and iteration.direction == "exact")
+
+
+def test_newtons_local_phase_keeps_the_exact_direction_past_negative_curvature():
+    """The collapse's first step at 10³ × 6 cells on the iterative path (trust region): with
+    ``indefinite_newton`` an iteration past negative curvature takes the exact (MINRES)
+    direction, and the step reaches the same state in fewer iterations than with the trust
+    region's boundary step there."""
+    scene = get_scene("collapse")
+    parameters = Parameters(
+        **{**scene.defaults, "resolution": 10, "linear_solver": "iterative", "t_stop": 0.01}
+    )
+    runs = {}
+    for indefinite in (True, False):
+        observer = _ExactPastCurvature()
+        states = []
+        summary = run_scene(
+            scene,
+            parameters,
+            comm=MPI.COMM_SELF,
+            observers=[observer],
+            problem_options={"indefinite_newton": indefinite},
+            on_step=lambda run, states=states: states.append(run.u.x.array.copy()),
+        )
+        assert summary["steps"] == 1 and summary["stepping"]["cuts"] == 0
+        runs[indefinite] = (observer.count, summary["newton_iterations"]["total"], states[-1])
+    (exact_with, newton_with, state_with), (exact_without, newton_without, state_without) = (
+        runs[True],
+        runs[False],
+    )
+    assert exact_with >= 1 and exact_without == 0
+    assert newton_with < newton_without
+    scale = np.abs(state_without).max()
+    np.testing.assert_allclose(state_with, state_without, atol=1e-6 * scale)

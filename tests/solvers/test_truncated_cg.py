@@ -26,6 +26,7 @@ def _solve(
     *,
     restart: bool = True,
     radius: float = np.inf,
+    indefinite: bool = False,
 ):
     A, P = _matrix(operator), _matrix(preconditioner)
     b = PETSc.Vec().createWithArray(rhs.copy(), comm=PETSc.COMM_SELF)
@@ -36,6 +37,7 @@ def _solve(
     context.operator = A
     context.restart = restart
     context.radius = radius
+    context.indefinite = indefinite
     ksp.getPC().setType(pc)
     ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=500)
     ksp.solve(b, x)
@@ -104,6 +106,49 @@ def test_an_indefinite_preconditioner_fails():
     preconditioner = np.diag([1.0, -1.0, 1.0])
     reason, _, _, context = _solve(operator, preconditioner, np.array([0.0, 1.0, 0.0]), "lu")
     assert reason == REASONS.DIVERGED_INDEFINITE_PC and context.outcome == "failed"
+
+
+def _indefinite(rng, n: int, negative: float) -> tuple[np.ndarray, np.ndarray]:
+    """A symmetric operator with one negative eigenvalue, and its clamped-at-|λ| tangent."""
+    basis, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    eigenvalues = np.linspace(1.0, 10.0, n)
+    eigenvalues[0] = negative
+    return basis @ np.diag(eigenvalues) @ basis.T, basis @ np.diag(np.abs(eigenvalues)) @ basis.T
+
+
+@pytest.mark.parametrize("pc", ["none", "jacobi", "lu"])
+def test_indefinite_newton_solves_the_exact_system_past_negative_curvature(pc):
+    """With ``indefinite``, MINRES takes over where CG meets negative curvature and returns the
+    exact Newton direction K⁻¹ b, here a descent direction (b's component along the negative
+    eigenvector is small, as near a saddle point)."""
+    rng = np.random.default_rng(7)
+    operator, projected = _indefinite(rng, 30, -0.5)
+    rhs = projected @ rng.standard_normal(30)
+    negative_direction = np.linalg.eigh(operator)[1][:, 0]
+    rhs -= 0.9 * (rhs @ negative_direction) * negative_direction
+    exact = np.linalg.solve(operator, rhs)
+    assert rhs @ exact > 0.0
+    reason, iterations, x, context = _solve(operator, projected, rhs, pc, indefinite=True)
+    assert reason > 0 and reason != _compat.KSP_CONVERGED_NEGATIVE_CURVATURE
+    assert context.outcome == "exact" and context.curvature_iteration is not None
+    np.testing.assert_allclose(x, exact, rtol=1e-8, atol=1e-10)
+    assert iterations > context.curvature_iteration
+    # Without it the same system gives the projected tangent's direction.
+    _, _, x, context = _solve(operator, projected, rhs, pc)
+    assert context.outcome == "projected"
+    np.testing.assert_allclose(x, np.linalg.solve(projected, rhs), rtol=1e-8, atol=1e-10)
+
+
+def test_indefinite_newton_keeps_the_projected_direction_where_the_exact_one_ascends():
+    """Where K⁻¹ b is not a descent direction (b mostly along the negative eigenvector), the
+    solve falls back on the projected tangent, as without ``indefinite``."""
+    operator = np.diag([1.0, 2.0, -5.0])
+    rhs = np.array([0.1, 0.1, 1.0])  # bᵀK⁻¹b = 0.01 + 0.005 − 0.2 < 0
+    projected = np.diag([1.0, 2.0, 5.0])
+    reason, _, x, context = _solve(operator, projected, rhs, "lu", indefinite=True)
+    assert reason == _compat.KSP_CONVERGED_NEGATIVE_CURVATURE and context.outcome == "projected"
+    np.testing.assert_allclose(x, np.linalg.solve(projected, rhs), rtol=1e-12)
+    assert rhs @ x > 0.0
 
 
 # -- Steihaug–Toint: CG bounded by a trust region in the preconditioner's norm -----------------
@@ -181,3 +226,32 @@ def test_the_step_norm_recurrence_matches_the_preconditioner_norm():
         norm = np.sqrt(x @ np.diag(np.diag(operator)) @ x)
         assert context.step_norm == pytest.approx(norm, rel=1e-9)
         assert context.boundary == (radius < np.inf)
+
+
+def test_in_a_trust_region_the_exact_direction_replaces_the_boundary_where_it_descends():
+    """``indefinite`` in a trust region: past negative curvature the exact Newton direction
+    (descending here) instead of the boundary; where it ascends, Steihaug's boundary point.
+    A radius that binds before any negative curvature bounds the step as before."""
+    rng = np.random.default_rng(9)
+    operator, projected = _indefinite(rng, 25, -0.5)
+    negative_direction = np.linalg.eigh(operator)[1][:, 0]
+    rhs = projected @ rng.standard_normal(25)
+    rhs -= 0.9 * (rhs @ negative_direction) * negative_direction
+    exact = np.linalg.solve(operator, rhs)
+    radius = 2.0 * np.linalg.norm(exact)
+    _, _, x, context = _solve(operator, np.eye(25), rhs, "none", radius=radius, indefinite=True)
+    assert context.outcome == "exact" and not context.boundary
+    assert context.curvature_iteration is not None
+    np.testing.assert_allclose(x, exact, rtol=1e-8, atol=1e-10)
+    radius = 0.01 * np.linalg.norm(rhs)
+    _, _, x, context = _solve(operator, np.eye(25), rhs, "none", radius=radius, indefinite=True)
+    assert context.outcome == "bounded" and context.curvature_iteration is None
+
+    ascending = np.diag([1.0, 2.0, -5.0]), np.array([0.1, 0.1, 1.0])
+    radius = 0.5
+    _, _, x, context = _solve(*ascending[:1], np.eye(3), ascending[1], "none", radius=radius,
+                              indefinite=True)  # fmt: skip
+    assert context.outcome == "bounded" and context.boundary
+    assert np.linalg.norm(x) == pytest.approx(radius, rel=1e-10)
+    _, _, steihaug, _ = _solve(*ascending[:1], np.eye(3), ascending[1], "none", radius=radius)
+    np.testing.assert_allclose(x, steihaug, rtol=1e-12)
