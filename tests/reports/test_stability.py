@@ -385,3 +385,49 @@ def test_the_command_refuses_an_option_with_the_api_message(tmp_path, capsys, op
     assert main(["report", "stability", "--scene", "collapse", "--out", str(out), *option]) == 2
     assert f"error: {message}" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_cell_reports_how_far_it_got_after_every_step():
+    """``run_cell``'s progress: one record a stored step, the steps counted up to the last,
+    whose time is the cell's end time."""
+    cell = study.Cell("collapse", "nh-c2", 0.45, 1.0e5, 1.0e-2, resolution=2)
+    reports = []
+    record = runner.run_cell(cell, progress=reports.append)
+    assert record["steps"] == len(reports) > 0
+    assert [report["steps"] for report in reports] == list(range(1, len(reports) + 1))
+    assert reports[-1]["time_star"] == pytest.approx(record["t_end_star"])
+    assert reports[-1]["t_end_star"] == pytest.approx(record["t_end_star"])
+    assert reports[-1]["newton_total"] == record["newton_total"]
+
+
+_SLOW_WORKER = """
+import sys, time
+sys.stdin.readline()
+for steps in (1, 2, 3):
+    print('STABILITY-PROGRESS {"time_star": %g, "t_end_star": 6.0, "steps": %d, '
+          '"failed_attempts": 1, "newton_total": %d}' % (0.5 * steps, steps, 4 * steps),
+          flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("reports", [True, False])
+def test_a_timed_out_cell_says_how_far_it_got(tmp_path, monkeypatch, reports):
+    """A worker that reports three steps and then hangs: the timed-out cell's record keeps the
+    last report (time, steps, Newton iterations); one that never reports says so."""
+    from dolfinx_invertible.reports.stability import pool
+
+    script = _SLOW_WORKER if reports else "import sys, time\nsys.stdin.readline()\ntime.sleep(60)"
+    monkeypatch.setattr(pool, "_worker_command", lambda: [sys.executable, "-c", script])
+    cell = study.Cell("scatter", "nh-c2", 0.45, 1.0e5, 1.0e-2)
+    (record,) = pool.run_cells([cell], workers=1, timeout=3.0, log_directory=tmp_path)
+    assert record["outcome"] == record["cause"] == "timeout"
+    if reports:
+        assert (record["steps"], record["newton_total"]) == (3, 12)
+        assert record["time_reached_star"] == pytest.approx(1.5)
+        assert (
+            "at t = 1.5 L/c of 6 after 3 steps, 1 failed attempts and 12 Newton"
+            in (record["reason"])
+        )
+    else:
+        assert "steps" not in record and record["reason"].endswith("before its first step")

@@ -28,9 +28,13 @@ class Recorder(RunObserver):
     iterate, norms, caps
         The latest Newton iterate of the current (or last) attempt, the residual norms of its
         iterations, and the step limits' caps on its directions.
+    on_step
+        Called with the run after every stored step (the worker reports progress with it, so
+        that a cell stopped by its timeout still says how far it got); ``None`` by default.
     """
 
-    def __init__(self):
+    def __init__(self, on_step=None):
+        self.on_step = on_step
         self.run = None
         self.kinetic_max = 0.0
         self.projected = 0
@@ -46,6 +50,8 @@ class Recorder(RunObserver):
     def step(self, run) -> None:
         """Record a stored state."""
         self._observe(run)
+        if self.on_step is not None:
+            self.on_step(run)
 
     def iteration(self, run, iteration) -> None:
         """Keep the iterate and its residual norm (a new attempt starts at iteration 0)."""

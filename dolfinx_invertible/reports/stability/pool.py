@@ -32,6 +32,7 @@ __all__ = ["CELL_TIMEOUT", "run_cells", "run_worker"]
 CELL_TIMEOUT = 900.0
 
 _RESULT = "STABILITY-CELL "
+_PROGRESS = "STABILITY-PROGRESS "
 
 
 def _worker_command() -> list[str]:
@@ -61,8 +62,11 @@ class _Worker:
             env=environment,
         )
         self._buffer = b""
+        #: How far the current cell got (its last progress line), reset for every cell.
+        self.progress: dict[str, Any] | None = None
 
     def send(self, cell: Cell) -> None:
+        self.progress = None
         self.process.stdin.write((json.dumps(dataclasses.asdict(cell)) + "\n").encode())
         self.process.stdin.flush()
 
@@ -76,6 +80,8 @@ class _Worker:
                 text = line.decode(errors="replace")
                 if text.startswith(_RESULT):
                     return json.loads(text[len(_RESULT) :])
+                if text.startswith(_PROGRESS):
+                    self.progress = json.loads(text[len(_PROGRESS) :])
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return None
@@ -159,13 +165,15 @@ def run_cells(
                 if stopping.is_set():
                     break
                 if result is None:
+                    worker_progress = worker.progress
                     alive = worker.process.poll() is None
                     tail = worker.tail()
                     with lock:
                         live.discard(worker)
                     worker.kill()
                     worker = None
-                    result = _lost_cell(cell, "timeout" if alive else "crashed", timeout, tail)
+                    outcome = "timeout" if alive else "crashed"
+                    result = _lost_cell(cell, outcome, timeout, tail, worker_progress)
                 with lock:
                     results[index] = result
                     if on_result is not None:
@@ -202,13 +210,34 @@ def run_cells(
     return [result for result in results if result is not None]
 
 
-def _lost_cell(cell: Cell, outcome: str, timeout: float, tail: str) -> dict[str, Any]:
+def _lost_cell(
+    cell: Cell,
+    outcome: str,
+    timeout: float,
+    tail: str,
+    progress: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Return the record of a cell whose worker timed out or died (how far it got, if known)."""
     reason = (
         f"the cell ran longer than {timeout:.0f} s and was stopped"
         if outcome == "timeout"
         else "the worker process died: " + (tail.splitlines()[-1] if tail else "no output")
     )
     record = {**cell.identity(), "outcome": outcome, "reason": reason}
+    if progress:
+        record.update(
+            steps=progress["steps"],
+            newton_total=progress["newton_total"],
+            time_reached_star=progress["time_star"],
+        )
+        reached, end = progress["time_star"], progress["t_end_star"]
+        record["reason"] = (
+            f"{reason}, at t = {reached:.3g} L/c of {end:.3g} after {progress['steps']} steps, "
+            f"{progress['failed_attempts']} failed attempts and {progress['newton_total']} "
+            "Newton iterations"
+        )
+    elif outcome == "timeout":
+        record["reason"] = f"{reason} before its first step"
     record["cause"], record["cause_detail"] = diagnose(record)
     return record
 
@@ -233,8 +262,13 @@ def run_worker() -> int:
         if not line.strip():
             continue
         cell = Cell(**json.loads(line))
+
+        def report(progress: dict[str, Any]) -> None:
+            output.write(_PROGRESS + json.dumps(json_ready(progress)) + "\n")
+            output.flush()
+
         try:
-            record = run_cell(cell)
+            record = run_cell(cell, progress=report)
         except RunInterrupted:
             return 1
         except Exception as error:  # a defect: reported as the cell's outcome, not hidden

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
 from typing import Any
 
 from dolfinx_invertible.reports.stability.diagnosis import diagnose
@@ -26,6 +27,7 @@ __all__ = [
     "LONG_SOLVE",
     "SPECTRUM_LIMIT",
     "inverted_energy_minimum",
+    "progress_record",
     "overlapping_cells",
     "run_cell",
 ]
@@ -326,8 +328,26 @@ def _parse_reason(message: str | None) -> tuple[str | None, str | None, float | 
     )
 
 
-def run_cell(cell: Cell) -> dict[str, Any]:
-    """Run one cell here (``MPI.COMM_SELF``) and return its record (CSV columns and more)."""
+def progress_record(cell: Cell, run) -> dict[str, Any]:
+    """How far a cell's run got: time in the cell's time unit, steps, cuts, Newton iterations."""
+    statistics = run.statistics
+    return {
+        "time_star": run.time / cell.time_unit,
+        "t_end_star": run.parameters.t_end / cell.time_unit,
+        "steps": statistics.steps,
+        "failed_attempts": statistics.failed_attempts,
+        "newton_total": statistics.newton_iterations["total"],
+    }
+
+
+def run_cell(
+    cell: Cell, progress: Callable[[dict[str, Any]], None] | None = None
+) -> dict[str, Any]:
+    """Run one cell here (``MPI.COMM_SELF``) and return its record (CSV columns and more).
+
+    ``progress``, if given, is called after every stored step with how far the run got
+    (:func:`progress_record`).
+    """
     from mpi4py import MPI
 
     from dolfinx_invertible.scenes import get_scene, run_scene
@@ -359,7 +379,9 @@ def run_cell(cell: Cell) -> dict[str, Any]:
             )
             record["cause"], record["cause_detail"] = diagnose(record)
             return record
-    recorder = Recorder()
+    recorder = Recorder(
+        on_step=None if progress is None else lambda run: progress(progress_record(cell, run))
+    )
     summary = run_scene(scene_class, parameters, output=None, comm=comm, observers=[recorder])
     snes, ksp, failed_step = _parse_reason(summary.get("reason"))
     stepping = summary.get("stepping", {})
