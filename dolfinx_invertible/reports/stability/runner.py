@@ -27,8 +27,8 @@ __all__ = [
     "LONG_SOLVE",
     "SPECTRUM_LIMIT",
     "inverted_energy_minimum",
-    "progress_record",
     "overlapping_cells",
+    "progress_record",
     "run_cell",
 ]
 
