@@ -189,10 +189,11 @@ class NewtonDirections:
         Whether Newton's local phase keeps the exact tangent's direction past negative
         curvature where it descends (see the module description).
     local_phase
-        Whether the current iteration is in Newton's local phase (the module description).
+        Whether the current iteration is in Newton's local phase (the module description;
+        iterative path only, ``False`` on the direct path).
     model_ratio
         ρ of the last step: its energy decrease over its quadratic model's (``nan`` before
-        the first, or where the step was not measured).
+        the first, where the step was not measured, and on the direct path).
     exact_preconditioner
         Whether the next exact iteration of the iterative path preconditions with AMG on the
         exact tangent (no negative curvature met in the last one) rather than the projected.
@@ -294,13 +295,13 @@ class NewtonDirections:
         self.projected_now = projected
         self.kind = ProjectedTangent.kind if projected else self.tangent
         self.replacement_linear_iterations = 0
-        self.local_phase = (
-            self._steps > 0
-            and self._full_step
-            and self._last_kind != BOUNDED
-            and self.model_ratio > TrustRegion.GROW_ABOVE
-        )
         if self.truncated is not None:
+            self.local_phase = (
+                self._steps > 0
+                and self._full_step
+                and self._last_kind != BOUNDED
+                and self.model_ratio > TrustRegion.GROW_ABOVE
+            )
             self.truncated.blend = self._blending()
             self.truncated.indefinite = self.indefinite_newton and self.local_phase
             if self.trust_region is not None:

@@ -373,9 +373,11 @@ class EnergyMinimizer:
                 f"search's floor of {floor:.1e}",
             )
             return
-        # Options may have replaced the truncated CG for a while (options_override).
-        bounded = self.trust_region is not None and directions.truncated is not None
-        slope, curvature = self._model_terms(y) if has_energy else (math.nan, math.nan)
+        # Options may have replaced the truncated CG for a while (options_override). Only the
+        # truncated CG reads ρ (its local phase, its trust region): the direct path skips it.
+        measured = has_energy and directions.truncated is not None
+        bounded = measured and self.trust_region is not None
+        slope, curvature = self._model_terms(y) if measured else (math.nan, math.nan)
         if largest < 1.0:
             y.scale(largest)
         search.full_step = largest == 1.0
@@ -384,6 +386,8 @@ class EnergyMinimizer:
             return
         self._stop(search.backtrack(x, y, self._residual))
         fraction = monitors.step_length = largest * search.fraction
+        if not measured:
+            return
         predicted = fraction * slope - 0.5 * fraction**2 * curvature
         directions.model_ratio = agreement(search.decrease, predicted, search.rounding_error)
         if bounded:
