@@ -14,6 +14,7 @@ material benchmark runs without DOLFINx.
   (``tests/constitutive/numpy_reference.py``);
 - ``assembly``, ``points``, ``solve``, ``scaling``, ``compile``, ``memory``: the DOLFINx side;
 - ``scenes``: whole scenes at growing resolutions, both solver paths;
+- ``contact``: the contact scenes, where a run's time goes, per rank count;
 - :mod:`.common`: cases, timing and reporting shared by the DOLFINx benchmarks;
 - :mod:`.threads`: one thread per process;
 - :mod:`.cold_start` and :mod:`.tangent_points`: scripts of their own, outside the command line
@@ -42,6 +43,8 @@ BENCHMARKS = {
     "memory": "peak resident memory of building and one Newton step of a large P1 problem",
     "scenes": "scenes as their meshes grow: outcome, Newton and Krylov counts, time and memory "
     "per step, on the direct and the iterative path",
+    "contact": "contact scenes: cells, surface vertices, steps, cuts, Newton and Krylov counts, "
+    "and the shares of the time in candidates, CCD, barrier, elastic and linear solve",
 }
 
 #: This folder.

@@ -306,6 +306,13 @@ def load_text(report: dict) -> str:
     )
 
 
+def rows_table(benchmark: str, report: dict, header: str, row_text) -> str:
+    """Return a report of rows as a table: a heading with the load, ``header``, one line a row."""
+    lines = [f"{benchmark} benchmark, {load_text(report)}", header]
+    lines += [row_text(row) for row in report["rows"]]
+    return "\n".join(lines)
+
+
 def child_environment(**extra: str) -> dict:
     """Return the current environment plus :data:`CHILD_ENVIRONMENT` and ``extra``."""
     environment = dict(os.environ)

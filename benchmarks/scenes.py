@@ -324,9 +324,7 @@ def _row_text(row: dict) -> str:
 def table(report: dict) -> str:
     """Return the report as a table (one line per run)."""
     header = " ".join(heading.rjust(width) for _, heading, width, _ in _COLUMNS)
-    lines = [f"scenes benchmark, {common.load_text(report)}", header]
-    lines += [_row_text(row) for row in report["rows"]]
-    return "\n".join(lines)
+    return common.rows_table("scenes", report, header, _row_text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -150,9 +150,12 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
     distance_fraction
         d̂ / h when ``distance`` is not given.
     stiffness
-        κ; default such that the barrier's stiffness per unit area at a gap of d̂/2 is E / h,
-        that of a layer of material one vertex spacing thick (the rule of the obstacles'
-        barrier, :func:`~dolfinx_invertible.contact.barrier.barrier_stiffness`).
+        κ; default such that the barrier's stiffness per unit area at a gap of d̂/2 is E / d̂,
+        that of a layer of the material as thick as the barrier's range: pressed, the barrier
+        zone gives way no more than the material beside it. Ten times softer (E / h at
+        d̂ = h/10), a landing pressed the gaps to 10⁻³ d̂, deep into the barrier's logarithm,
+        and Newton needed a third more iterations (docs/contact.md, "A barrier as stiff as
+        the material").
     project_hessian
         ``None`` (default): the exact Hessian where the problem assembles its exact tangent
         (Newton's local phase), its SPD projection (ipctk's, per collision) elsewhere
@@ -233,7 +236,7 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         if stiffness is None:
             youngs_modulus = youngs_modulus_for_stiffness(material, youngs_modulus)
             stiffness = youngs_modulus / (
-                spacing * separation_curvature(self.distance, spacing, dimension)
+                self.distance * separation_curvature(self.distance, spacing, dimension)
             )
         self.stiffness = float(stiffness)
         if not (math.isfinite(self.stiffness) and self.stiffness > 0.0):
@@ -363,6 +366,51 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
             )
             self._collisions_at = positions.copy()
         return self._collisions
+
+    def describe_state(self) -> str:
+        """Say how close the surfaces are, which bodies are closest and the stiffness (collective).
+
+        For a failed solve's message: the pairs within d̂, the closest pair's distance, its
+        bodies (connected components of the surface, numbered from 0) and where it is, and κ
+        against its initial value.
+        """
+        positions = self.positions()
+        collisions = self._collisions_for(positions)
+        initial = self.max_stiffness / ADAPTIVE_STIFFNESS_RANGE
+        text = (
+            f"contact: {len(collisions)} surface pairs within d̂ = {self.distance:.3g} m, "
+            f"κ = {self.stiffness:.3g} ({self.stiffness / initial:.3g} × its initial value)"
+        )
+        closest = self._closest_pair(positions, collisions)
+        if closest is not None:
+            distance, vertices = closest
+            bodies = sorted({int(self.surface.bodies[vertex]) for vertex in vertices})
+            where = ", ".join(f"{value:.4g}" for value in positions[vertices].mean(axis=0))
+            between = (
+                f"within body {bodies[0]}"
+                if len(bodies) == 1
+                else "between bodies " + " and ".join(str(body) for body in bodies)
+            )
+            text += f"; the closest pair {distance:.3g} m apart, {between}, at ({where})"
+        return text
+
+    def _closest_pair(
+        self, positions: np.ndarray, collisions: ipctk.NormalCollisions
+    ) -> tuple[float, list[int]] | None:
+        """Return the smallest distance of a collision of the set and its surface vertices."""
+        points = np.asfortranarray(positions)
+        edges, faces = self.collision_mesh.edges, self.collision_mesh.faces
+        closest = None
+        # One Python call per pair: only for a failed solve's message.
+        for index in range(len(collisions)):
+            collision = collisions[index]
+            squared = float(collision.compute_distance(collision.dof(points, edges, faces)))
+            if closest is None or squared < closest[0]:
+                vertices = [int(v) for v in collision.vertex_ids(edges, faces) if v >= 0]
+                closest = (squared, vertices)
+        if closest is None:
+            return None
+        return math.sqrt(max(closest[0], 0.0)), closest[1]
 
     def active_pairs(self) -> int:
         """Pairs of surface primitives closer than d̂ (the barrier acts on them; collective)."""

@@ -203,6 +203,32 @@ class ContactTerm(StatefulTerm, ProjectableHessian):
         self.penetration_count = int(state["penetrations"])
         self.max_contact_vertices = int(state["max_contact_vertices"])
 
+    def describe_state(self) -> str:
+        """Say how many boundary vertices the barrier holds and which is closest (collective).
+
+        For a failed solve's message: the vertices within d̂, the smallest gap, the obstacle
+        (numbered from 0 in the order given) and where the vertex is.
+        """
+        gaps = self.gaps()
+        candidate = (math.inf, -1, ())
+        if gaps.size:
+            obstacle, vertex = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
+            candidate = (
+                float(gaps[obstacle, vertex]),
+                int(obstacle),
+                tuple(self.positions()[vertex]),
+            )
+        gap, obstacle, where = min(self.comm.allgather(candidate), key=lambda item: item[0])
+        text = (
+            f"obstacle contact: {self.active_vertices()} boundary vertices within "
+            f"d̂ = {self.barrier.distance:.3g} of an obstacle"
+        )
+        if obstacle >= 0:
+            point = ", ".join(f"{value:.4g}" for value in where)
+            name = type(self.obstacles[obstacle]).__name__
+            text += f"; the smallest gap {gap:.3g}, to obstacle {obstacle} ({name}), at ({point})"
+        return text
+
     def positions(self) -> np.ndarray:
         """Return the current positions X + u of this rank's boundary vertices, (n, d)."""
         return self.boundary.positions(self.u.x.array)

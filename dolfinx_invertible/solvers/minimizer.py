@@ -179,6 +179,10 @@ class EnergyMinimizer:
         self.u = problem.u
         self.step_limits = tuple(step_limits)
         self._capped_by: str | None = None  # the step limit that capped the last step
+        # Per Newton iteration of the current solve, the smallest cap below 1 and its limit,
+        # and the directions the solve computed.
+        self._caps: dict[int, tuple[float, str]] = {}
+        self._direction_count = 0
         self.options_prefix = options_prefix
 
         self.options = MinimizerOptions(problem, petsc_options, options_prefix, linear_solver, pc)
@@ -327,7 +331,21 @@ class EnergyMinimizer:
             self._monitors.capped(limit, cap, iteration)
             if cap < largest:
                 largest, self._capped_by = cap, type(limit).__name__
+        if self._capped_by is not None:
+            earlier = self._caps.get(iteration, (1.0, ""))
+            self._caps[iteration] = min(earlier, (largest, self._capped_by))
         return largest
+
+    def _where(self) -> str:
+        """Where the failed solve's last iterate is worst, and how the step limits acted."""
+        parts = [self.problem.locate(self._x)]
+        if self._caps:
+            smallest, limit = min(self._caps.values())
+            parts.append(
+                f"step limits capped {len(self._caps)} of {self._direction_count} "
+                f"Newton steps (the smallest cap {smallest:.2g} of the step, by {limit})"
+            )
+        return "; ".join(part for part in parts if part)
 
     def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         # SNES moves to x − λ·y after this: λ = 1 with our line search, PETSc's choice for l2.
@@ -336,6 +354,7 @@ class EnergyMinimizer:
         has_energy = self.problem.has_energy
         monitors = self._monitors
         monitors.start_direction()
+        self._direction_count += 1
         directions.model_ratio = math.nan  # until a step is taken and measured
         directions.settle(x, y, ksp)
         ok, why = directions.judge(ksp, y, has_energy=has_energy)
@@ -503,6 +522,8 @@ class EnergyMinimizer:
         u_vector.copy(self._x)
         _compat.set_dirichlet_values(self._x, problem.bcs)
         self._monitors.start_solve()
+        self._caps = {}
+        self._direction_count = 0
         self._test.start_solve()
         self.directions.start_solve()
         self._search.start_solve()
@@ -517,10 +538,12 @@ class EnergyMinimizer:
 
         converged = self.snes.getConvergedReason() > 0
         energy = None
+        where = ""
         if converged:
             problem.update_solution(self._x)
             energy = problem.total_energy()
         else:
+            where = self._where()
             self._restore(u_vector)
         return SolveResult.from_snes(
             self.snes,
@@ -531,6 +554,7 @@ class EnergyMinimizer:
             tolerance=self._test.tolerance,
             projected_iterations=self.directions.projected_iterations,
             blended_iterations=self.directions.blended_iterations,
+            where=where,
         )
 
     def _restore(self, u_vector: PETSc.Vec) -> None:

@@ -245,6 +245,43 @@ class EnergyProblem:
             x.copy(self._u_vector)
         self.u.x.scatter_forward()
 
+    def locate(self, x: PETSc.Vec) -> str:
+        """Say where the state ``x`` is worst, for a failed solve's message (collective).
+
+        The node with the largest free residual entry (its reference position and where it is
+        now), then what each term with a ``describe_state()`` method reports of the state
+        (:class:`~dolfinx_invertible.solvers.terms.StatefulTerm`). Leaves ``u`` at ``x``.
+        """
+        residual = self.create_vector()
+        try:
+            self.F(None, x, residual)
+            values = np.abs(residual.getArray(readonly=True))
+        finally:
+            residual.destroy()
+        space = self.u.function_space
+        block_size = space.dofmap.index_map_bs
+        dimension = space.mesh.geometry.dim
+        values = np.where(self.free_owned, np.nan_to_num(values, nan=np.inf), 0.0)
+        candidate = (-1.0, (), ())
+        if len(values):
+            index = int(np.argmax(values))
+            node = index // block_size
+            reference = space.tabulate_dof_coordinates()[node, :dimension]
+            offset = self.u.x.array[node * block_size : node * block_size + dimension]
+            candidate = (float(values[index]), tuple(reference), tuple(reference + offset))
+        value, reference, current = max(self.comm.allgather(candidate), key=lambda item: item[0])
+        parts = []
+        if value > 0.0:
+            parts.append(
+                f"the largest residual entry, {value:.3g}, at the node X = {_point(reference)} "
+                f"(now at {_point(current)})"
+            )
+        for term in self.terms:
+            describe = getattr(term, "describe_state", None)
+            if describe is not None:
+                parts.append(describe())
+        return "; ".join(part for part in parts if part)
+
     def energy_terms(self) -> np.ndarray:
         """Return each energy form's and term's value at the current ``u``, summed over ranks."""
         local = np.array(
@@ -333,3 +370,7 @@ class EnergyProblem:
                     RuntimeWarning,
                     stacklevel=2,
                 )
+
+
+def _point(coordinates) -> str:
+    return "(" + ", ".join(f"{value:.4g}" for value in coordinates) + ")"

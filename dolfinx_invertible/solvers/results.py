@@ -109,6 +109,12 @@ class SolveResult:
         ``"NaN"`` (:data:`STAGES`); ``None`` when converged.
     detail
         One sentence on why the solve stopped, e.g. which test converged or what failed.
+    where
+        For a failed solve, where its last iterate was worst: the node with the largest
+        residual entry, what the energy terms report (a contact term: its closest surface
+        pair, its bodies and its stiffness) and how often step limits capped the Newton steps
+        (:meth:`~dolfinx_invertible.solvers.problem.EnergyProblem.locate`); empty when
+        converged.
     linear_reason_name
         PETSc KSP converged reason of the last linear solve, e.g. ``"CONVERGED_RTOL"``.
     projected_iterations
@@ -140,6 +146,7 @@ class SolveResult:
     tangent: str = ""
     stage: str | None = None
     detail: str = ""
+    where: str = ""
     linear_reason_name: str | None = None
     projected_iterations: int = 0
     blended_iterations: int = 0
@@ -158,11 +165,13 @@ class SolveResult:
         tolerance: float,
         projected_iterations: int,
         blended_iterations: int,
+        where: str = "",
     ) -> SolveResult:
         """Return the result of a solve that ``snes`` has just finished.
 
         ``failure`` is (reason, stage, detail) where the minimiser ended the solve itself,
-        ``converged_detail`` why it declared convergence where its own test did.
+        ``converged_detail`` why it declared convergence where its own test did, ``where``
+        where a failed solve's last iterate was worst.
         """
         reason = int(snes.getConvergedReason())
         converged = reason > 0
@@ -190,6 +199,7 @@ class SolveResult:
             residual_history=tuple(float(value) for value in history),
             stage=stage,
             detail=detail,
+            where="" if converged else where,
             linear_reason_name=ksp_reason_name(ksp_reason) if ksp_reason != 0 else None,
             projected_iterations=projected_iterations,
             blended_iterations=blended_iterations,
@@ -204,7 +214,8 @@ class SolveResult:
         if self.linear_reason_name and self.stage == "linear solve":
             text += f", KSP {self.linear_reason_name}"
         text += f") after {self.newton_iterations} Newton iterations"
-        return text + (f": {self.detail}" if self.detail else "")
+        text += f": {self.detail}" if self.detail else ""
+        return text + (f"; where: {self.where}" if self.where else "")
 
 
 def ksp_reason_name(reason: int) -> str:

@@ -15,6 +15,10 @@ declares and
 - saves :meth:`~StatefulTerm.checkpoint_state` in the run's checkpoint and gives it back to
   :meth:`~StatefulTerm.restore` when the run continues.
 
+A failed solve's message adds :meth:`~StatefulTerm.describe_state` at its last iterate
+(:meth:`~dolfinx_invertible.solvers.problem.EnergyProblem.locate`), so that it says where the
+term stood, e.g. which bodies were closest.
+
 Each method has a default that does nothing, so a term implements what it has. Outside a scene
 run, a script calls them itself (e.g. ``boundary_update=term.start_step``).
 
@@ -63,6 +67,13 @@ class StatefulTerm:
 
     def restore(self, state: dict[str, Any]) -> None:
         """Continue from :meth:`checkpoint_state`."""
+
+    def describe_state(self) -> str:
+        """Return one clause on the term's state at the current ``u`` (collective).
+
+        Called where a solve failed, at its last iterate; empty says nothing.
+        """
+        return ""
 
 
 class ProjectableHessian:

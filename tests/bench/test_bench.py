@@ -15,6 +15,7 @@ import pytest
 from benchmarks import assembly as bench_assembly
 from benchmarks import common as bench_common
 from benchmarks import compile as bench_compile
+from benchmarks import contact as bench_contact
 from benchmarks import memory as bench_memory
 from benchmarks import points as bench_points
 from benchmarks import scaling as bench_scaling
@@ -221,3 +222,38 @@ def test_scene_rows_take_a_budget_of_cuts(monkeypatch):
     (row,) = report["rows"]
     assert (row["max_cuts"], row["outcome"], row["steps"]) == (0, "failed", 0)
     assert row["cuts"] >= 1 and row["attempts"] == row["cuts"]
+
+
+def test_the_contact_clock_counts_each_category_without_the_ones_it_calls():
+    import time
+
+    class Work:
+        def outer(self):
+            time.sleep(0.02)
+            self.inner()
+
+        def inner(self):
+            time.sleep(0.03)
+
+    clock = bench_contact._Clock()
+    clock.wrap(Work, "outer", "outer")
+    clock.wrap(Work, "inner", "inner")
+    Work().outer()
+    assert 0.02 <= clock.seconds["outer"] < 0.03 <= clock.seconds["inner"] < 0.045
+
+
+def test_contact_rows_count_the_pile_and_share_its_time():
+    """The 8 cubes of resolution 2 in a child: 8 × (3³ − 1³) surface vertices (a cube's grid
+    points but its one interior point), the counts of the run, shares that add up to at most
+    the run's time, and contact work measured."""
+    report = bench_contact.run(["cubes-in-bowl"], [2], [1], ["direct"], None, 600.0)
+    (row,) = report["rows"]
+    assert (row["cells"], row["surface_vertices"], row["ranks"]) == (384, 8 * (27 - 1), 1)
+    assert row["outcome"] == "completed" and row["intersections"] == 0
+    assert row["newton_per_step"] == pytest.approx(row["newton"] / row["steps"])
+    shares = row["shares"]
+    assert set(shares) == set(bench_contact.SHARES) and all(v >= 0.0 for v in shares.values())
+    assert sum(shares.values()) <= 1.0
+    assert min(shares["candidates"], shares["CCD"], shares["barrier"], shares["obstacles"]) > 0.0
+    assert shares["elastic"] > 0.0 and shares["linear"] > 0.0
+    assert "candidates" in bench_contact.table(report)

@@ -129,13 +129,13 @@ def test_projected_hessian_is_positive_semidefinite():
 
 
 def test_stiffness_rule_gives_a_layer_of_material():
-    """κ's rule: at a gap of d̂/2, pushing two faces together is as stiff as E/h per area.
+    """κ's rule: at a gap of d̂/2, pushing two faces together is as stiff as E/d̂ per area.
 
     Measured on meshes (not the calibration patch of the rule): a cube of side 1 above the
     middle of a cube of side 2, both at the same spacing; the second derivative of the energy as
     the small cube moves rigidly towards the large one, per unit area of its bottom face. The
     vertices along the small face's rim also carry the area of the side faces (ipctk's vertex
-    areas), a share that falls like h: the ratio to E/h, extrapolated to h → 0 from two
+    areas), a share that falls like h: the ratio to E/d̂, extrapolated to h → 0 from two
     meshes (Richardson, first order), is 1.
     """
     ratios = []
@@ -159,7 +159,7 @@ def test_stiffness_rule_gives_a_layer_of_material():
 
         gap, step = 0.5 * term.distance, 1e-3 * term.distance
         curvature = (energy(gap + step) - 2 * energy(gap) + energy(gap - step)) / step**2
-        ratios.append(curvature / SIDE**2 / (youngs_modulus / term.spacing))
+        ratios.append(curvature / SIDE**2 / (youngs_modulus / term.distance))
     assert ratios[0] > ratios[1] > 1.0
     assert 2 * ratios[1] - ratios[0] == pytest.approx(1.0, abs=0.1)
 
@@ -245,6 +245,27 @@ def test_distributed_equals_serial(friction):
         assert (term._tangential is not None) == bool(friction)  # the friction acts
     serial, distributed = values[1], values[MPI.COMM_WORLD.size]
     np.testing.assert_allclose(distributed, serial, rtol=1e-11)
+
+
+@pytest.mark.mpi
+def test_the_state_names_the_closest_pair_and_its_bodies_for_a_failed_solve():
+    """Two cubes, one a gap GAP above the other, with d̂ wider than the gap: the clause a
+    failed solve's message adds counts the pairs, gives the gap, both bodies and a point
+    between the facing sides, and κ at its initial value."""
+    mesh = two_cubes(MPI.COMM_WORLD)
+    term = BodyContactTerm(dolfinx.fem.Function(_compat.vector_function_space(mesh, 1)),
+                           youngs_modulus=1.0, distance=0.05)  # fmt: skip
+    text = term.describe_state()
+    pairs = term.active_pairs()
+    assert pairs > 0 and term.minimum_distance() == pytest.approx(GAP, rel=1e-12)
+    prefix = (
+        f"contact: {pairs} surface pairs within d̂ = 0.05 m, κ = {term.stiffness:.3g} (1 × its "
+        f"initial value); the closest pair {GAP:.3g} m apart, between bodies 0 and 1, at ("
+    )
+    assert text.startswith(prefix)
+    point = [float(value) for value in text[len(prefix) : -1].split(", ")]
+    bottom_top = term.surface.reference[:, 2].min() + SIDE
+    assert bottom_top - 1e-9 <= point[2] <= bottom_top + GAP + 1e-9
 
 
 def test_crossing_bodies_are_refused_naming_them():

@@ -366,3 +366,21 @@ def test_the_hessian_is_exact_or_projected_as_the_problem_asks():
     assert not fixed.projected
     with pytest.raises(ValueError, match="project_hessian"):
         ContactTerm(u, ball, MATERIAL, project_hessian="yes")
+
+
+@pytest.mark.mpi
+def test_the_state_names_the_closest_obstacle_for_a_failed_solve():
+    """The clause a failed solve's message adds: the vertices the barrier holds and the smallest
+    gap, the obstacle and the point, as the term's own figures and an independent search say."""
+    term, u = term_on_unit_cube()
+    text = term.describe_state()
+    gaps = term.gaps()
+    local = (float(gaps.min()), int(np.argmin(gaps.min(axis=1)))) if gaps.size else (np.inf, -1)
+    smallest, obstacle = min(term.comm.allgather(local))
+    assert smallest == term.minimum_gap() and 0.0 < smallest < term.barrier.distance
+    name = type(active_obstacles()[obstacle]).__name__
+    assert text.startswith(
+        f"obstacle contact: {term.active_vertices()} boundary vertices within d̂ = 0.12 of an "
+        f"obstacle; the smallest gap {smallest:.3g}, to obstacle {obstacle} ({name}), at ("
+    )
+    assert term.active_vertices() > 0

@@ -83,13 +83,13 @@ def run_and_kill(folder, launcher, at_line: int, command=(*COMMAND, *RUN)) -> in
     return len(log.read_text().splitlines())
 
 
-def final_displacement(folder) -> tuple[np.ndarray, np.ndarray]:
+def final_displacement(folder, end: float = 0.4) -> tuple[np.ndarray, np.ndarray]:
     """Return the displacement nodes (sorted by coordinates) and values of the last checkpoint."""
     with np.load(folder / "checkpoint.npz") as data:
         coordinates = data["displacement.coordinates"]
         values = data["displacement.values"]
         state = json.loads(str(data["state"]))
-    assert state["stepper"]["time"] == pytest.approx(0.4)
+    assert state["stepper"]["time"] == pytest.approx(end)
     order = np.lexsort(np.round(coordinates, 12).T[::-1])
     return coordinates[order], values[order]
 
@@ -218,6 +218,43 @@ def test_a_killed_quasi_static_run_resumes_to_the_end_of_the_same_run(tmp_path):
         _last_step(path / "cook-membrane.xdmf", 7, end=1.0) for path in (folder, reference)
     )
     assert np.abs(written - reference_written).max() <= 1e-10
+
+
+#: Eight cubes falling into a bowl until they land on it and on each other (t = 0.45–0.6 s).
+BOWL = [sys.executable, "-m", "dolfinx_invertible", "run", "cubes-in-bowl", "--quiet",
+        "--t-end", "0.6", "--checkpoint-every", "7"]  # fmt: skip
+
+
+def test_a_killed_contact_run_resumes_to_the_end_of_the_same_run(tmp_path):
+    """Body contact keeps its state over a restart: the adapted κ, the smallest distance so far
+    and the crossing count come back with the displacement, and the run ends as the
+    uninterrupted one does."""
+    reference = tmp_path / "whole"
+    whole = subprocess.run([*BOWL, "--out", str(reference)], capture_output=True, text=True,
+                           timeout=600, env=ENVIRONMENT)  # fmt: skip
+    assert whole.returncode == 0, whole.stderr
+    folder = tmp_path / "run"
+    # Killed while the cubes land: the barrier acts from about step 46 on.
+    run_and_kill(folder, [], random.Random().randint(48, 58), command=BOWL)
+    assert not (folder / "summary.json").exists()
+    completed = subprocess.run([*BOWL[:5], "--resume", str(folder)], capture_output=True,
+                               text=True, timeout=600, env=ENVIRONMENT)  # fmt: skip
+    assert completed.returncode == 0, completed.stderr
+    summary = json.loads((folder / "summary.json").read_text())
+    expected = json.loads((reference / "summary.json").read_text())
+    assert summary["outcome"] == expected["outcome"] == "completed"
+    for key in ("steps", "newton_iterations", "stepping", "intersections", "penetrations",
+                "barrier_stiffness", "max_contact_vertices"):  # fmt: skip
+        assert summary[key] == expected[key], key
+    assert (
+        expected["intersections"] == 0 and expected["min_distance"] < expected["barrier_distance"]
+    )
+    for key in ("min_distance", "min_gap"):
+        assert summary[key] == pytest.approx(expected[key], rel=1e-8), key
+    nodes, values = final_displacement(folder, end=0.6)
+    reference_nodes, reference_values = final_displacement(reference, end=0.6)
+    assert np.allclose(nodes, reference_nodes, rtol=0.0, atol=1e-12)
+    assert np.abs(values - reference_values).max() <= 1e-10
 
 
 def test_a_run_killed_before_its_first_whole_checkpoint_resumes_from_its_parts(tmp_path):

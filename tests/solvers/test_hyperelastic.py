@@ -405,9 +405,51 @@ def test_a_step_cap_below_the_line_search_floor_fails_the_step_by_name():
         u, Material(NeoHookean(mu=MU, lam=LAM), C2()), density=1.0, dt=0.1, max_cuts=1,
         gravity=(0.0, 0.0, -9.81), step_limits=[_Wall()],
     )  # fmt: skip
-    with pytest.raises(SolverError, match=r"failed .*_Wall allows 1\.0e-30 of the Newton step"):
+    with pytest.raises(
+        SolverError, match=r"failed .*_Wall allows 1\.0e-30 of the Newton step"
+    ) as error:
         dynamics.step()
     assert dynamics.controller.statistics()["cuts"] >= 1
+    # Each attempt stops at its first direction, capped by the wall.
+    assert (
+        "step limits capped 1 of 1 Newton steps (the smallest cap 1e-30 of the step, by _Wall)"
+        in str(error.value)
+    )
+
+
+@pytest.mark.mpi
+def test_a_failed_solve_says_where_its_last_iterate_is_worst():
+    """One node of a cube at rest is moved: the residual is largest there. A solve allowed no
+    iteration fails at that state and names the node, where it is now and the largest entry
+    (computed again here); a converged solve names nothing."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 4, 4, 4)
+    space = _compat.vector_function_space(mesh, 1)
+    u = dolfinx.fem.Function(space)
+    centre = np.flatnonzero(np.all(np.isclose(space.tabulate_dof_coordinates(), 0.5), axis=1))
+    u.x.array.reshape(-1, 3)[centre] = [0.02, 0.0, 0.0]
+    problem = HyperelasticProblem(
+        u, Material(NeoHookean(mu=MU, lam=LAM), C2()), petsc_options={"snes_max_it": 0}
+    )
+    energy_problem = problem.energy_problem
+    residual = energy_problem.create_vector()
+    energy_problem.F(None, _compat.petsc_vector(u), residual)
+    local = np.abs(residual.getArray(readonly=True))[energy_problem.free_owned]
+    largest = mesh.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX)
+    assert largest > 0.0
+    expected = (
+        f"the largest residual entry, {largest:.3g}, at the node X = (0.5, 0.5, 0.5) "
+        "(now at (0.52, 0.5, 0.5))"
+    )
+    assert energy_problem.locate(_compat.petsc_vector(u)) == expected
+    result = problem.solve()
+    assert not result.converged and result.where.startswith(expected)
+    assert f"; where: {expected}" in result.describe()
+    assert u.x.array.reshape(-1, 3)[centre] == pytest.approx(
+        np.array([[0.02, 0.0, 0.0]] * len(centre))
+    )
+    problem.solver.snes.setTolerances(max_it=50)
+    converged = problem.solve()
+    assert converged.converged and converged.where == "" and "where" not in converged.describe()
 
 
 def _collapse_with(globalization: str):
