@@ -68,6 +68,7 @@ def main() -> None:
     )
     if comm.rank == 0:
         print("directions", dict(probe.kinds), "linear reasons", dict(probe.reasons))
+        print("capped Newton steps by the limit that bound them", dict(probe.binding))
         keys = ("outcome", "steps", "newton_iterations", "linear_iterations", "wall_time_s")
         print(json.dumps({key: summary[key] for key in keys} | {"stepping": summary["stepping"]}))
 
@@ -80,15 +81,25 @@ class Probe(RunObserver):
         self.verbose = verbose
         self.kinds: collections.Counter = collections.Counter()
         self.reasons: collections.Counter = collections.Counter()
+        self.binding: collections.Counter = collections.Counter()
+        self._caps: dict[str, float] = {}  # the caps below 1 of the step being taken
         self.started = time.perf_counter()
 
     def start(self, run) -> None:
         unknowns = run.u.function_space.dofmap.index_map.size_global * run.mesh.geometry.dim
         self._print(f"{unknowns} unknowns, {run.minimizer.linear_solver} linear solver")
 
+    def step_cap(self, run, cap) -> None:
+        if cap.cap < 1.0:
+            name = type(cap.limit).__name__
+            self._caps[name] = min(self._caps.get(name, 1.0), cap.cap)
+
     def iteration(self, run, iteration) -> None:
         if iteration.iteration == 0:
             return
+        if self._caps:
+            self.binding[min(self._caps, key=self._caps.get)] += 1
+            self._caps = {}
         self.kinds[iteration.direction] += 1
         self.reasons[iteration.linear_reason] += 1
         if self.verbose:
