@@ -2,11 +2,10 @@
 
 ``python -m dolfinx_invertible bench contact [--scenes cubes-in-bowl links] [--resolutions 2 3 4]
 [--ranks 1 2] [--paths direct] [--count N] [--json PATH]`` runs every scene at every resolution
-(default: the scene's own),
-rank count and solver path (``--linear-solver``), each run a child process under ``mpirun -n``
-with the scene's defaults otherwise, and writes one row per run: cells, surface vertices, steps,
-cuts, Newton iterations per step, Krylov iterations per Newton iteration, the run's stepping
-time, and the shares of that time (rank 0's) in
+(default: the scene's own), rank count and solver path (``--linear-solver``), each run a child
+process under ``mpirun -n`` with the scene's defaults otherwise, and writes one row per run:
+cells, surface vertices, steps, cuts, Newton iterations per step, Krylov iterations per Newton
+iteration, the run's stepping time, and the shares of that time (rank 0's) in
 
 - **candidates**: ipctk's broad and narrow phase, the collision sets of the body contact term
   (built once per new state) and the search for its smallest distance;
@@ -20,9 +19,9 @@ time, and the shares of that time (rank 0's) in
 - **linear**: PETSc's ``KSPSolve`` and the preconditioner's set-ups (MUMPS's factorisations,
   AMG's hierarchies) outside it: the linear solves whole;
 
-and the rest (the line search's bookkeeping, the output, Python). Shares are exclusive: a
-collision set built inside an energy evaluation counts as candidates, not barrier. The timers
-wrap the classes' methods in the worker process only.
+and the rest (the line search's bookkeeping, the diagnostics of every step, Python). Shares are
+exclusive: a collision set built inside an energy evaluation counts as candidates, not barrier.
+The timers wrap the classes' methods in the worker process only.
 """
 
 from __future__ import annotations
