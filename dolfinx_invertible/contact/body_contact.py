@@ -39,6 +39,7 @@ from dolfinx_invertible.contact.barrier import (
 )
 from dolfinx_invertible.contact.friction import DEFAULT_FRICTION_VELOCITY
 from dolfinx_invertible.contact.surface import GatheredSurface
+from dolfinx_invertible.solvers.results import point_text
 from dolfinx_invertible.solvers.terms import ProjectableHessian, StatefulTerm
 
 __all__ = ["BodyContactTerm", "SurfaceCollisionFreeStep", "SurfaceIntersectionError"]
@@ -385,13 +386,13 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         if closest is not None:
             distance, vertices = closest
             bodies = sorted({int(self.surface.bodies[vertex]) for vertex in vertices})
-            where = ", ".join(f"{value:.4g}" for value in positions[vertices].mean(axis=0))
+            where = point_text(positions[vertices].mean(axis=0))
             between = (
                 f"within body {bodies[0]}"
                 if len(bodies) == 1
                 else "between bodies " + " and ".join(str(body) for body in bodies)
             )
-            text += f"; the closest pair {distance:.3g} m apart, {between}, at ({where})"
+            text += f"; the closest pair {distance:.3g} m apart, {between}, at {where}"
         return text
 
     def _closest_pair(
@@ -481,8 +482,8 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
     def _describe(self, facet: int, positions: np.ndarray) -> str:
         vertices = self.surface.facets[facet]
         body = int(self.surface.bodies[vertices[0]])
-        centroid = ", ".join(f"{value:.4g}" for value in positions[vertices].mean(axis=0))
-        return f"body {body}'s surface facet {facet} (centroid ({centroid}))"
+        centroid = point_text(positions[vertices].mean(axis=0))
+        return f"body {body}'s surface facet {facet} (centroid {centroid})"
 
     def step_limit(
         self, fraction: float = 0.9, narrow_phase: ipctk.NarrowPhaseCCD | None = None

@@ -31,6 +31,7 @@ from dolfinx_invertible.contact.obstacle import Obstacle
 from dolfinx_invertible.contact.obstacles import Obstacles
 from dolfinx_invertible.contact.potential import BarrierPotential
 from dolfinx_invertible.contact.step import CollisionFreeStep
+from dolfinx_invertible.solvers.results import point_text
 from dolfinx_invertible.solvers.terms import ProjectableHessian, StatefulTerm
 
 __all__ = ["ContactTerm"]
@@ -224,9 +225,11 @@ class ContactTerm(StatefulTerm, ProjectableHessian):
             f"d̂ = {self.barrier.distance:.3g} of an obstacle"
         )
         if obstacle >= 0:
-            point = ", ".join(f"{value:.4g}" for value in where)
             name = type(self.obstacles[obstacle]).__name__
-            text += f"; the smallest gap {gap:.3g}, to obstacle {obstacle} ({name}), at ({point})"
+            text += (
+                f"; the smallest gap {gap:.3g}, to obstacle {obstacle} ({name}), at "
+                f"{point_text(where)}"
+            )
         return text
 
     def positions(self) -> np.ndarray:

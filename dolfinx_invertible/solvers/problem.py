@@ -21,6 +21,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
+from dolfinx_invertible.solvers.results import point_text
 
 __all__ = ["EnergyProblem", "EnergyTerm"]
 
@@ -273,8 +274,8 @@ class EnergyProblem:
         parts = []
         if value > 0.0:
             parts.append(
-                f"the largest residual entry, {value:.3g}, at the node X = {_point(reference)} "
-                f"(now at {_point(current)})"
+                f"the largest residual entry, {value:.3g}, at the node X = {point_text(reference)} "
+                f"(now at {point_text(current)})"
             )
         for term in self.terms:
             describe = getattr(term, "describe_state", None)
@@ -370,7 +371,3 @@ class EnergyProblem:
                     RuntimeWarning,
                     stacklevel=2,
                 )
-
-
-def _point(coordinates) -> str:
-    return "(" + ", ".join(f"{value:.4g}" for value in coordinates) + ")"

@@ -218,6 +218,11 @@ class SolveResult:
         return text + (f"; where: {self.where}" if self.where else "")
 
 
+def point_text(coordinates) -> str:
+    """Return a point as the messages write it, e.g. ``(0.5, 0.25, -1)``."""
+    return "(" + ", ".join(f"{value:.4g}" for value in coordinates) + ")"
+
+
 def ksp_reason_name(reason: int) -> str:
     """Return the name of a PETSc ``KSPConvergedReason``, e.g. -3 -> ``"DIVERGED_ITS"``."""
     return _KSP_REASON_NAMES.get(int(reason), f"UNKNOWN_REASON_{int(reason)}")
