@@ -29,6 +29,7 @@ def main() -> None:
                         "loading keeps its schedule over t_end")  # fmt: skip
     parser.add_argument("--dt", type=float)
     parser.add_argument("--nu", type=float)
+    parser.add_argument("--count", type=int, help="bodies, for the scenes that have a count")
     parser.add_argument("--linear-solver", dest="linear_solver", default="auto")
     parser.add_argument("--pc", default="gamg")
     parser.add_argument("--globalization", default="auto")
@@ -44,6 +45,7 @@ def main() -> None:
         "t_stop",
         "dt",
         "nu",
+        "count",
         "linear_solver",
         "pc",
         "globalization",

@@ -52,6 +52,8 @@ ipctk.set_num_threads(1)
 
 #: IPC's bound of the adaptive κ: 100 times the initial stiffness.
 ADAPTIVE_STIFFNESS_RANGE = 100.0
+#: The adaptive κ doubles while the smallest distance keeps falling below this share of d̂.
+ADAPTIVE_DISTANCE_FRACTION = 0.05
 
 
 class SurfaceIntersectionError(ValueError):
@@ -170,8 +172,13 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         ε_v [m/s]: slower sliding sticks (elastically).
     adaptive_stiffness
         IPC's adaptive κ (ipctk's ``update_barrier_stiffness``), once per time step in
-        :meth:`set_time`: while the smallest distance keeps falling below 10⁻⁹ of the surface's
-        bounding-box diagonal, κ doubles, up to 100 times its initial value (IPC's bounds).
+        :meth:`set_time`: while the smallest distance keeps falling below
+        ``adaptive_fraction`` × d̂, κ doubles, up to 100 times its initial value (IPC's bound).
+    adaptive_fraction
+        The share of d̂ below which κ adapts. IPC's threshold, 10⁻⁹ of the bounding-box
+        diagonal, is 10⁻⁶ d̂ at IPC's d̂ and was never reached in our scenes, while the
+        Newton steps of a landing were already capped short by the CCD at gaps of 1 % of d̂
+        (docs/contact.md, "Where the pile's landing goes").
 
     Attributes
     ----------
@@ -185,6 +192,8 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         d̂ and κ (κ as adapted so far).
     max_stiffness
         The bound of the adaptive κ.
+    adaptive_fraction
+        The share of d̂ below which κ adapts.
     """
 
     def __init__(
@@ -200,6 +209,7 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         friction: float = 0.0,
         friction_velocity: float = DEFAULT_FRICTION_VELOCITY,
         adaptive_stiffness: bool = True,
+        adaptive_fraction: float = ADAPTIVE_DISTANCE_FRACTION,
     ) -> None:
         self.u = u
         if not (math.isfinite(friction) and friction >= 0.0):
@@ -244,6 +254,7 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
             raise ValueError(f"stiffness must be a finite number > 0, got {stiffness!r}")
         self.potential = ipctk.BarrierPotential(self.distance, self.stiffness)
         self.adaptive_stiffness = bool(adaptive_stiffness)
+        self.adaptive_fraction = check_open_unit_interval("adaptive_fraction", adaptive_fraction)
         self.max_stiffness = ADAPTIVE_STIFFNESS_RANGE * self.stiffness
         reference = self.surface.reference
         self._diagonal = float(np.linalg.norm(reference.max(axis=0) - reference.min(axis=0)))
@@ -306,6 +317,7 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
                 self.max_stiffness,
                 self.stiffness,
                 self._diagonal,
+                dhat_epsilon_scale=self.adaptive_fraction * self.distance / self._diagonal,
             )
             if stiffness != self.stiffness:
                 self.stiffness = float(stiffness)
@@ -429,15 +441,30 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         if self._minimum_at is not None and np.array_equal(self._minimum_at[0], positions):
             return self._minimum_at[1]
         spacing = self.spacing
-        nearby = _collision_set()
-        nearby.build(self.collision_mesh, positions, spacing, broad_phase=ipctk.HashGrid())
-        minimum = spacing
-        if len(nearby):
-            # ipctk measures squared distances.
-            squared = float(nearby.compute_minimum_distance(self.collision_mesh, positions))
-            minimum = min(math.sqrt(max(squared, 0.0)), spacing)
+        # Within d̂ the barrier's own collision set holds every pair, and usually it is built at
+        # these positions already; the wider search costs a broad phase with h for inflation.
+        minimum = self._smallest_within_barrier(positions)
+        if minimum is None:
+            nearby = _collision_set()
+            nearby.build(self.collision_mesh, positions, spacing, broad_phase=ipctk.HashGrid())
+            minimum = _smallest_distance(nearby, self.collision_mesh, positions)
+        minimum = spacing if minimum is None else min(minimum, spacing)
         self._minimum_at = (positions.copy(), minimum)
         return minimum
+
+    def _smallest_within_barrier(self, positions: np.ndarray) -> float | None:
+        """Return the smallest distance of a pair closer than d̂, ``None`` if there is none."""
+        return _smallest_distance(
+            self._collisions_for(positions), self.collision_mesh, np.asfortranarray(positions)
+        )
+
+    def distance_bound(self, positions: np.ndarray) -> float:
+        """Return a lower bound of the distance of any two non-adjacent surface primitives.
+
+        The smallest distance of a pair closer than d̂, else d̂ (collective).
+        """
+        minimum = self._smallest_within_barrier(positions)
+        return self.distance if minimum is None else minimum
 
     def intersecting_pairs(self, positions: np.ndarray | None = None) -> np.ndarray:
         """Pairs of surface facets that cross each other, (k, 2), each pair once (collective).
@@ -637,14 +664,31 @@ class SurfaceCollisionFreeStep:
         # Along the path stretched by 1/fraction, the first contact time t is fraction × the
         # first contact in units of the Newton step: exactly the cap (1 when t reaches 1).
         end = start + motion / self.fraction
-        step = ipctk.compute_collision_free_stepsize(
-            term.collision_mesh,
-            np.asfortranarray(start),
-            np.asfortranarray(end),
-            broad_phase=ipctk.HashGrid(),
-            narrow_phase_ccd=self.narrow_phase,
-        )
+        # No vertex moving farther than r, no two primitives close in by more than 2r: a step
+        # that short against the closest pair needs no CCD (Newton's last iterations, free fall).
+        reach = float(np.sqrt(np.max(np.sum((end - start) ** 2, axis=1), initial=0.0)))
+        if 2.0 * reach < term.distance_bound(start):
+            step = 1.0
+        else:
+            step = ipctk.compute_collision_free_stepsize(
+                term.collision_mesh,
+                np.asfortranarray(start),
+                np.asfortranarray(end),
+                broad_phase=ipctk.HashGrid(),
+                narrow_phase_ccd=self.narrow_phase,
+            )
         return term.comm.allreduce(min(1.0, float(step)), op=MPI.MIN)
+
+
+def _smallest_distance(
+    collisions: ipctk.NormalCollisions, mesh: ipctk.CollisionMesh, positions: np.ndarray
+) -> float | None:
+    """Return the smallest distance of a collision set's pairs, ``None`` for an empty set."""
+    if len(collisions) == 0:
+        return None
+    # ipctk measures squared distances.
+    squared = float(collisions.compute_minimum_distance(mesh, np.asfortranarray(positions)))
+    return math.sqrt(max(squared, 0.0))
 
 
 def _intersecting_facets(

@@ -7,6 +7,7 @@ from mpi4py import MPI
 
 import dolfinx
 import dolfinx.fem
+import ipctk
 import numpy as np
 import pytest
 import ufl
@@ -195,6 +196,42 @@ def test_step_cap_stops_before_the_surfaces_meet():
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("gap", [GAP, 0.2])
+def test_a_step_shorter_than_half_the_closest_distance_needs_no_ccd(gap, monkeypatch):
+    comm = MPI.COMM_WORLD
+    mesh = two_cubes(comm, offset=(0.2, 0.1, SIDE + gap))
+    space = _compat.vector_function_space(mesh, 1)
+    term = BodyContactTerm(dolfinx.fem.Function(space), youngs_modulus=1.0)
+    start = term.positions()
+    bound = term.distance_bound(start)
+    # Within d̂ the bound is the smallest distance itself; farther apart it is d̂, below it.
+    if gap < term.distance:
+        assert bound == pytest.approx(term.minimum_distance(), rel=1e-12)
+    else:
+        assert bound == term.distance < term.minimum_distance()
+    calls = []
+    ccd = ipctk.compute_collision_free_stepsize
+    monkeypatch.setattr(
+        ipctk, "compute_collision_free_stepsize", lambda *a, **k: calls.append(1) or ccd(*a, **k)
+    )
+    limit = term.step_limit(fraction=0.9)
+    for seed in range(4):
+        motion = field(space, seed, 1.0)
+        reach = np.max(np.linalg.norm(term.surface.motion(motion.x.array), axis=1))
+        motion.x.array[:] *= 0.999 * 0.9 * bound / (2.0 * comm.allreduce(reach, op=MPI.MAX))
+        vector = _compat.petsc_vector(motion)
+        assert limit.largest_step(vector) == 1.0 and not calls
+        # ipctk's CCD along the same stretched path agrees: nothing collides.
+        end = start + term.surface.motion(motion.x.array) / 0.9
+        assert ccd(term.collision_mesh, np.asfortranarray(start), np.asfortranarray(end)) == 1.0
+        # Twice as far the bound does not hold, and the CCD is asked.
+        vector.scale(2.0)
+        limit.largest_step(vector)
+        assert len(calls) == 1
+        calls.clear()
+
+
+@pytest.mark.mpi
 def test_surface_is_gathered_whole_on_every_rank():
     comm = MPI.COMM_WORLD
     resolution = 3
@@ -307,10 +344,10 @@ def test_needs_a_scale_for_the_stiffness():
 
 
 @pytest.mark.mpi
-def test_stiffness_adapts_while_the_smallest_distance_keeps_falling_below_ipcs_epsilon():
-    """IPC's rule: κ doubles at a step whose distance fell below 10⁻⁹ of the bounding-box
-    diagonal, and fell further since the last step; a retried step or a distance that does not
-    fall leaves it; it stops at 100 times its start."""
+def test_stiffness_adapts_while_the_smallest_distance_keeps_falling_below_a_share_of_dhat():
+    """IPC's rule with its threshold a share of d̂: κ doubles at a step whose distance fell
+    below 5 % of d̂, and fell further since the last step; a retried step or a distance that
+    does not fall leaves it; it stops at 100 times its start."""
     comm = MPI.COMM_WORLD
     mesh = two_cubes(comm, resolution=1)
     space = _compat.vector_function_space(mesh, 1)
@@ -318,11 +355,12 @@ def test_stiffness_adapts_while_the_smallest_distance_keeps_falling_below_ipcs_e
     term = BodyContactTerm(u, youngs_modulus=1.0e3)
     initial = term.stiffness
     points = mesh.geometry.x
-    local = np.vstack([points.min(axis=0), points.max(axis=0)])
-    low = np.array([comm.allreduce(value, op=MPI.MIN) for value in local[0]])
-    high = np.array([comm.allreduce(value, op=MPI.MAX) for value in local[1]])
-    epsilon = 1.0e-9 * np.linalg.norm(high - low)
-    upper = space.tabulate_dof_coordinates()[:, 2] > 0.5 * (low[2] + high[2])
+    middle = 0.5 * (
+        comm.allreduce(points[:, 2].min(), op=MPI.MIN)
+        + comm.allreduce(points[:, 2].max(), op=MPI.MAX)
+    )
+    epsilon = 0.05 * term.distance
+    upper = space.tabulate_dof_coordinates()[:, 2] > middle
 
     def step(t, gap):
         u.x.array[:] = 0.0
@@ -331,8 +369,8 @@ def test_stiffness_adapts_while_the_smallest_distance_keeps_falling_below_ipcs_e
         assert term.minimum_distance() == pytest.approx(gap, rel=1e-3)
         return term.stiffness / initial
 
-    assert step(1.0, 1.0e-3) == 1.0
-    assert step(2.0, 0.5 * epsilon) == 1.0  # the distance was above ε at the last step
+    assert step(1.0, 1.01 * epsilon) == 1.0
+    assert step(2.0, 0.99 * epsilon) == 1.0  # the distance was above ε at the last step
     assert step(3.0, 0.25 * epsilon) == 2.0
     assert step(4.0, 0.25 * epsilon) == 2.0  # not falling
     term.set_time(3.0)  # a cut step goes back to its start and retries from the same state
