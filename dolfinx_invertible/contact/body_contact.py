@@ -666,7 +666,7 @@ class SurfaceCollisionFreeStep:
         end = start + motion / self.fraction
         # No vertex moving farther than r, no two primitives close in by more than 2r: a step
         # that short against the closest pair needs no CCD (Newton's last iterations, free fall).
-        reach = float(np.sqrt(np.max(np.sum((end - start) ** 2, axis=1), initial=0.0)))
+        reach = float(np.max(np.linalg.norm(motion, axis=1), initial=0.0)) / self.fraction
         if 2.0 * reach < term.distance_bound(start):
             step = 1.0
         else:
