@@ -133,8 +133,8 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
     barrier cannot start from surfaces that cross. A scene run does all of this itself (it is a
     :class:`~dolfinx_invertible.solvers.terms.StatefulTerm`) and logs, at every stored step,
     ``min_distance`` (the smallest distance between surface primitives; the summary's is the
-    smallest over the steps) and ``intersections`` (crossing surface facet pairs; the summary
-    sums them: 0 in a correct run).
+    smallest over the steps), ``intersections`` (crossing surface facet pairs; the summary
+    sums them: 0 in a correct run) and ``body_barrier_stiffness`` (κ as adapted so far).
 
     Parameters
     ----------
@@ -333,15 +333,27 @@ class BodyContactTerm(StatefulTerm, ProjectableHessian):
         self.check_intersection_free()
 
     def step_quantities(self) -> dict[str, float | int]:
-        """Return ``min_distance`` and ``intersections`` of the current state (collective)."""
-        figures = {"min_distance": self.minimum_distance(), "intersections": self.intersections()}
+        """Return ``min_distance``, ``intersections`` and κ of the current state (collective).
+
+        κ as adapted so far is ``body_barrier_stiffness`` (``barrier_stiffness`` is the
+        obstacles' in a scene that has both).
+        """
+        figures = {
+            "min_distance": self.minimum_distance(),
+            "intersections": self.intersections(),
+            "body_barrier_stiffness": self.stiffness,
+        }
         self.min_distance = min(self.min_distance, figures["min_distance"])
         self.intersection_count += figures["intersections"]
         return figures
 
     def summary_quantities(self) -> dict[str, float | int]:
-        """Return the smallest distance over the stored steps and the crossings summed."""
-        return {"min_distance": self.min_distance, "intersections": self.intersection_count}
+        """Return the smallest distance over the stored steps, the crossings summed, the last κ."""
+        return {
+            "min_distance": self.min_distance,
+            "intersections": self.intersection_count,
+            "body_barrier_stiffness": self.stiffness,
+        }
 
     def checkpoint_state(self) -> dict[str, float | None]:
         """Return what a restart needs besides the displacement: κ as adapted, its history."""

@@ -7,6 +7,7 @@ Toolkit. The summaries and step logs carry ``min_distance`` and ``intersections`
 
 from __future__ import annotations
 
+import itertools
 import json
 import subprocess
 import sys
@@ -60,6 +61,13 @@ def test_cubes_in_bowl_pile_up_without_crossing(directory):
     if MPI.COMM_WORLD.rank == 0:
         # The cubes did meet: their surfaces came far closer than at the start.
         assert min(row["min_distance"] for row in log) < 0.05 * log[0]["min_distance"]
+        # κ never falls and at most doubles a step, within IPC's bound of 100 times its start;
+        # the summary reports the last.
+        stiffness = [row["body_barrier_stiffness"] for row in log]
+        pairs = itertools.pairwise(stiffness)
+        assert all(earlier <= later <= 2.0 * earlier for earlier, later in pairs)
+        assert stiffness[-1] <= 100.0 * stiffness[0]
+        assert summary["body_barrier_stiffness"] == stiffness[-1]
 
 
 @pytest.mark.mpi
