@@ -2,9 +2,10 @@
 
 For each type of ipctk collision (face–vertex, edge–edge, edge–vertex, vertex–vertex) in the
 barrier's set: how many pairs, how many have negative curvature, the sum of the negative and of
-the positive eigenvalues of their Hessians, and the worst ratio λ_min / λ_max of one pair. What
-docs/contact.md ("The barrier's negative curvature, pair by pair") was measured with; serial
-only (it reads the gathered surface of rank 0's term):
+the positive eigenvalues of their Hessians, and the worst ratio λ_min / λ_max of one pair (0
+where none is negative). What docs/contact.md ("The barrier's negative curvature, pair by
+pair") was measured with; serial only (every rank holds the whole surface, so more ranks
+would repeat the same work and print it once each):
 
     .venv/bin/python tools/barrier_curvature.py cubes-in-bowl --resolution 2 --from 0.38 \\
         --t-stop 0.7
