@@ -36,6 +36,8 @@ def main() -> None:
     parser.add_argument("--petsc-option", action="append", default=[], dest="petsc_option")
     parser.add_argument("--problem-option", action="append", default=[], dest="problem_option")
     parser.add_argument("--verbose", action="store_true", help="one line per Newton iteration")
+    parser.add_argument("--resume", metavar="DIR", help="continue the stopped run in DIR "
+                        "(it is written to)")  # fmt: skip
     arguments = parser.parse_args()
     scene = get_scene(arguments.scene)
     values = dict(scene.defaults)
@@ -62,7 +64,8 @@ def main() -> None:
     summary = run_scene(
         scene,
         Parameters(**values),
-        output=None,
+        output=arguments.resume,
+        resume=arguments.resume is not None,
         petsc_options={name: value or None for name, value in petsc.items()},
         comm=comm,
         observers=[probe],

@@ -7,7 +7,11 @@ The package patches numba in four places (docs/design.md, docs/performance.md):
   machine-code name in the disk cache (``FunctionIdentity._unique_ids``);
 - ``locked_cache``: saves to numba's disk cache take a file lock, so that two processes saving
   specialisations of one function at once cannot leave its index naming the other's data
-  (``FunctionCache._save_overload``, the ``_cache`` of a dispatcher);
+  (``FunctionCache._save_overload``, the ``_cache`` of a dispatcher); and an entry is fresh only
+  while the package's compiled sources are as they were when it was saved (the index's
+  ``_source_stamp``, :func:`compiled_sources_digest`): numba checks the stamp of the function's
+  own file alone, so an edit to a function it calls from another file would otherwise leave
+  the old machine code in use;
 - ``compiled_only``: functions only compiled code calls get neither Python nor C wrappers and
   keep LLVM IR instead of machine code (a dispatcher subclass, numba's compiler pipeline and a
   code library class whose ``_finalize_final_module`` and ``_optimize_final_module`` stop
@@ -27,6 +31,8 @@ back. :data:`PATCHES_VARIABLE` set to ``0`` turns every patch off, without a war
 from __future__ import annotations
 
 import fcntl
+import functools
+import hashlib
 import inspect
 import itertools
 import logging
@@ -34,6 +40,7 @@ import os
 import secrets
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 
 import numba
 
@@ -44,6 +51,7 @@ __all__ = [
     "c_callable",
     "cached_c_callable",
     "compiled_only_dispatcher",
+    "compiled_sources_digest",
     "jit_cached",
     "missing_names",
     "overload_jit_options",
@@ -84,10 +92,13 @@ def _missing_function_numbers() -> list[str]:
 
 
 def _missing_locked_cache() -> list[str]:
-    from numba.core.caching import FunctionCache
+    from numba.core.caching import FunctionCache, IndexDataCacheFile
 
     missing = _absent(FunctionCache, "numba.core.caching.FunctionCache", "_save_overload")
     missing += _absent(FunctionCache, "numba.core.caching.FunctionCache", "cache_path")
+    # The stamp is an attribute of each index (``_source_stamp``), which these two compare.
+    missing += _absent(IndexDataCacheFile, "numba.core.caching.IndexDataCacheFile",
+                       "_load_index", "_save_index")  # fmt: skip
     return missing + _absent(numba.njit(_probe), "numba Dispatcher", "_cache")
 
 
@@ -204,6 +215,28 @@ if ACTIVE["function_numbers"]:
 # ---------------------------------------------------------------------------------------------
 # locked_cache
 # ---------------------------------------------------------------------------------------------
+# Text that marks a module whose functions numba compiles (a decorator or numba itself).
+_COMPILED_MARKERS = (b"compiled_only", b"compiled_overload", b"jit_cached", b"c_callable",
+                     b"import numba", b"from numba")  # fmt: skip
+
+
+@functools.cache
+def compiled_sources_digest(root: Path | None = None) -> str:
+    """Return a digest of the text of every module under ``root`` that numba compiles from.
+
+    ``root`` defaults to the package. A compiled function inlines, or links in, what it calls
+    from other modules, so its cached machine code is fresh only while all of them are
+    unchanged; the digest is part of every cache entry's stamp (``locked_cache``).
+    """
+    root = Path(__file__).resolve().parents[1] if root is None else Path(root)
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_bytes()
+        if any(marker in text for marker in _COMPILED_MARKERS):
+            digest.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
+    return digest.hexdigest()
+
+
 def _locked_function_cache_class() -> type:
     from numba.core.caching import FunctionCache
 
@@ -215,8 +248,16 @@ def _locked_function_cache_class() -> type:
         and its compile helper) could both pick the same data file, and the index could end up
         naming the other one's code. An exclusive lock on a file in the cache directory orders
         the saves; loads need none, since a data file then only ever holds the entry its index
-        names.
+        names. The index's stamp, numba's of the function's own file, also carries
+        :func:`compiled_sources_digest`, so that an edit to a function it calls in another
+        module makes the entry stale too.
         """
+
+        def __init__(self, py_func):
+            super().__init__(py_func)
+            index = getattr(self, "_cache_file", None)
+            if hasattr(index, "_source_stamp"):
+                index._source_stamp = (index._source_stamp, compiled_sources_digest())
 
         def _save_overload(self, sig, data):
             try:

@@ -34,8 +34,11 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
     """Return the one root in [lo, hi] of a cubic that is > 0 left of it and ≤ 0 right of it.
 
     Halley's method from the secant point of the bracket, bisection where Halley would leave
-    the bracket or the cubic is not falling. Halley's error after a step is about the cube of
-    that step, so a step below 1e-6 (relative) is the last: its error is below round-off.
+    the bracket, the cubic is not falling, or Newton's step is not at most half the step before
+    (the iterate is not yet converging to the root). Halley's error after a step is about the
+    cube of that step, so once Newton's step, the distance to the root to first order, is below
+    1e-6 (relative), the Halley step taken from there is the last. Halley's own step is no such
+    measure: it also vanishes at a critical point of the cubic (slope 0, value not 0).
     """
     value_lo = _value(lo, c0, c1, c2, c3)
     value_hi = _value(hi, c0, c1, c2, c3)
@@ -44,6 +47,7 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
         secant = lo + (hi - lo) * value_lo / (value_lo - value_hi)
         if lo < secant < hi:
             t = secant
+    previous = hi - lo
     for _ in range(100):
         value = _value(t, c0, c1, c2, c3)
         if value > 0.0:
@@ -52,7 +56,7 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
             hi = t
         slope = _slope(t, c1, c2, c3)
         denominator = 2.0 * slope * slope - value * _curvature(t, c2, c3)
-        halley = slope < 0.0 and denominator > 0.0
+        halley = slope < 0.0 and denominator > 0.0 and 2.0 * abs(value) <= -previous * slope
         candidate = t - 2.0 * value * slope / denominator if halley else 0.5 * (lo + hi)
         # Halley while it stays inside the bracket, bisection otherwise.
         if not (lo < candidate < hi):
@@ -60,8 +64,10 @@ def _bracketed_root(lo, hi, c0, c1, c2, c3):
             halley = False
         step = abs(candidate - t)
         size = max(t, 1e-300)
-        if (halley and step <= 1e-6 * size) or step <= 1e-16 * size or hi - lo <= 1e-17:
+        converged = halley and abs(value) <= -1e-6 * size * slope
+        if converged or step <= 1e-16 * size or hi - lo <= 1e-17:
             return candidate
+        previous = step
         t = candidate
     return t
 

@@ -51,7 +51,7 @@ def run_scene(
     scene_class: type[Scene],
     parameters: Parameters,
     *,
-    output: Path | None = None,
+    output: str | os.PathLike | None = None,
     quiet: bool = True,
     petsc_options: dict[str, Any] | None = None,
     comm=MPI.COMM_WORLD,
@@ -66,9 +66,9 @@ def run_scene(
 
     ``parameters`` hold every value, the scene's defaults filled in (validated here, with the
     options, before anything is computed: ``ValueError``). ``output`` is the directory of the
-    files (None writes nothing, as the reports do); ``quiet`` hides the progress bar;
-    ``petsc_options`` are solver options without prefix; ``on_step(run)`` is called after
-    every accepted step; ``observers`` (:class:`~dolfinx_invertible.scenes.observer.
+    files, a path or a string (None writes nothing, as the reports do); ``quiet`` hides the
+    progress bar; ``petsc_options`` are solver options without prefix; ``on_step(run)`` is
+    called after every accepted step; ``observers`` (:class:`~dolfinx_invertible.scenes.observer.
     RunObserver`) watch the run from its start to its end, every Newton iteration included;
     ``problem_options`` override the scene's and the parameters' options of the problem (see
     :class:`~dolfinx_invertible.HyperelasticProblem`); ``checkpoint_every`` writes
@@ -77,6 +77,7 @@ def run_scene(
     parameters; ``t_end`` may be later, ``max_cuts`` may change), appending to its files;
     ``output_format`` is a name of :data:`~dolfinx_invertible.choices.OUTPUT_FORMATS`.
     """
+    output = None if output is None else Path(output)
     _check_options(scene_class, parameters, output, checkpoint_every, resume, output_format)
     if output is not None:
         check_output_directory(output, comm)

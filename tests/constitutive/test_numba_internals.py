@@ -7,10 +7,12 @@ a child process on their own ``NUMBA_CACHE_DIR``.
 
 import importlib
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -201,3 +203,57 @@ def test_fallbacks_warn_once_unless_switched_off():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert not any(numba_internals._decide(missing, False).values())
+
+
+def test_the_compiled_sources_digest_follows_compiled_modules_only(tmp_path):
+    (tmp_path / "kernel.py").write_text("from numba import njit\n")
+    (tmp_path / "scene.py").write_text("x = 1\n")
+    digest = numba_internals.compiled_sources_digest.__wrapped__
+    before = digest(tmp_path)
+    (tmp_path / "scene.py").write_text("x = 2\n")
+    assert digest(tmp_path) == before
+    (tmp_path / "kernel.py").write_text("from numba import njit  # edited\n")
+    assert digest(tmp_path) != before
+
+
+_THRESHOLD_ENERGY = """
+import sys
+
+import numpy as np
+
+import dolfinx_invertible as di
+
+assert di.__file__.startswith(sys.argv[1]), di.__file__
+material = di.Material(di.NeoHookean(mu=345.0, lam=3103.0), extension=di.C2(eps=0.9))
+print(repr(float(material.energy_sigma(np.array([[1.6, 1.3, 0.3]]))[0])))
+"""
+
+
+def test_an_edit_to_a_called_module_reaches_its_cached_callers(tmp_path):
+    """C2's root finder lives in polynomial.py; the cached C2 energy must follow an edit to it.
+
+    numba's own stamp is the calling function's file (c2.py, unchanged here): with it alone the
+    second run would load the first run's machine code.
+    """
+    package = tmp_path / "copy"
+    source = Path(numba_internals.__file__).resolve().parents[1]
+    shutil.copytree(source, package / "dolfinx_invertible", ignore=_no_caches)
+    (tmp_path / "energy.py").write_text(_THRESHOLD_ENERGY)
+    arguments = [str(tmp_path / "energy.py"), str(package)]
+    cache = tmp_path / "cache"
+    first = float(_run(arguments, cache, package).stdout)
+    polynomial = package / "dolfinx_invertible" / "constitutive" / "polynomial.py"
+    text = polynomial.read_text()
+    marker = "    return _bracketed_root(0.0, 1.0, c0, c1, c2, c3)"
+    assert text.count(marker) == 1
+    polynomial.write_text(text.replace(marker, "    return 0.5"))
+    second = float(_run(arguments, cache, package).stdout)
+    assert np.isfinite(first) and np.isfinite(second)
+    assert second != first
+    # And the edited code is what ran: C2 anchored at q = 1 + a/2 instead of on J = 0.9.
+    polynomial.write_text(text)
+    assert float(_run(arguments, cache, package).stdout) == first
+
+
+def _no_caches(directory: str, names: list[str]) -> list[str]:
+    return [name for name in names if name == "__pycache__"]

@@ -178,6 +178,54 @@ def test_threshold_parameter_is_the_smallest_root(dimension):
         assert np.prod(1.0 + s * a) == pytest.approx(EPS, rel=1e-14)
 
 
+def _secant_on_the_maximum(stretch: float, middle: float) -> np.ndarray:
+    """σ = (x, middle, 1 − stretch·…) whose cubic Π(1 + t aᵢ) − EPS peaks at the secant point.
+
+    The root finder starts at the secant point of [0, 1]; where the cubic (rising, then
+    falling) has its maximum there, Halley's step from it is zero without a root: the point a
+    scatter at 24³ × 6 cells met (σ = (1.72459071, 1.31258886, 0.27332553), where C2's energy
+    came out 368 instead of 659 and its stress 10⁹ instead of 10³).
+    """
+
+    def mismatch(first: float) -> float:
+        a = np.array([first, middle, -stretch]) - np.array([1.0, 1.0, 0.0])
+        c3, c2, c1, _ = functools.reduce(np.polymul, [[value, 1.0] for value in a])
+        secant = (1.0 - EPS) / (1.0 - np.prod(1.0 + a))
+        peak = max(np.roots([3.0 * c3, 2.0 * c2, c1]).real)
+        return secant - peak
+
+    # From a trace of 3 (the cubic peaks at 0, left of the secant point) to where the peak is
+    # furthest right of it.
+    low = 2.0 + stretch - middle
+    candidates = np.linspace(low, EPS / (middle * (1.0 - stretch)), 200)[1:-1]
+    high = candidates[np.argmin([mismatch(first) for first in candidates])]
+    assert mismatch(low) > 0.0 > mismatch(high)
+    for _ in range(100):
+        centre = 0.5 * (low + high)
+        low, high = (centre, high) if mismatch(centre) > 0.0 else (low, centre)
+    return np.array([0.5 * (low + high), middle, 1.0 - stretch])
+
+
+@pytest.mark.parametrize("stretch, middle", [(0.72667, 1.31259), (0.8, 1.2), (0.9, 1.6)])
+def test_threshold_parameter_where_the_cubic_peaks_at_the_first_iterate(stretch, middle):
+    threshold = compiled_caller(threshold_parameter)
+    material = Material(NeoHookean(mu=345.0, lam=3103.0), extension=C2(eps=EPS))
+    centre = _secant_on_the_maximum(stretch, middle)
+    assert np.prod(centre) < EPS
+    # A line through the point, finer than the band (1e-9 wide) where the old test stopped.
+    offsets = np.linspace(-1e-7, 1e-7, 401)
+    sigma = centre + offsets[:, None] * np.array([1.0, 0.3, -0.2])
+    for point in sigma:
+        s = threshold(point - 1.0, EPS)
+        assert s == pytest.approx(_smallest_root(point - 1.0, EPS), rel=1e-12, abs=1e-15)
+    # The energy is Lipschitz along the line with the stress as its constant.
+    energy = material.energy_sigma(sigma)
+    stress = np.linalg.norm(material.stress_sigma(sigma), axis=1)
+    assert np.max(stress) < 1e4
+    step = np.linalg.norm(sigma[1] - sigma[0])
+    assert np.max(np.abs(np.diff(energy))) <= 2.0 * np.max(stress) * step + 1e-9
+
+
 def test_first_root_in_unit_interval_is_the_first_crossing():
     # Cubics through three chosen roots, one to three of them in (0, 1], and c0 > 0: the line
     # search's volume caps, where the cubic may cross zero, turn back and cross again.

@@ -395,3 +395,17 @@ def test_a_run_whose_cuts_ran_out_resumes_with_a_larger_budget(tmp_path):
     assert summary["completed"] and summary["parameters"]["max_cuts"] == 6
     assert summary["time"] == pytest.approx(summary["parameters"]["t_end"])
     assert summary["stepping"]["cuts"] > stopped["stepping"]["cuts"]
+
+
+def test_run_scene_takes_its_output_directory_as_a_string(tmp_path):
+    # As a FEniCS script passes it: a str, for a run and for its resumption.
+    from dolfinx_invertible.scenes import Parameters, get_scene, run_scene
+
+    scene = get_scene("collapse")
+    folder = str(tmp_path / "collapse")
+    values = {**scene.defaults, "resolution": 1}
+    first = run_scene(scene, Parameters(**values, t_stop=0.02), output=folder, checkpoint_every=1)
+    assert first["time"] == pytest.approx(0.02)
+    later = run_scene(scene, Parameters(**values, t_stop=0.04), output=folder, resume=True)
+    assert later["time"] == pytest.approx(0.04) and later["steps"] == 4
+    assert json.loads((tmp_path / "collapse" / "summary.json").read_text())["steps"] == 4
