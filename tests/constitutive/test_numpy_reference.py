@@ -179,7 +179,7 @@ def test_threshold_parameter_is_the_smallest_root(dimension):
 
 
 def _secant_on_the_maximum(stretch: float, middle: float) -> np.ndarray:
-    """σ = (x, middle, 1 − stretch·…) whose cubic Π(1 + t aᵢ) − EPS peaks at the secant point.
+    """σ = (x, middle, 1 − stretch) whose cubic Π(1 + t aᵢ) − EPS peaks at the secant point.
 
     The root finder starts at the secant point of [0, 1]; where the cubic (rising, then
     falling) has its maximum there, Halley's step from it is zero without a root: the point a

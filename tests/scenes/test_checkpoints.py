@@ -32,6 +32,7 @@ from dolfinx_invertible.io.checkpoint import (
     write_checkpoint,
     write_checkpoint_part,
 )
+from dolfinx_invertible.scenes import Parameters, get_scene, run_scene
 from dolfinx_invertible.scenes.checkpoints import latest_checkpoint
 
 COMMAND = [sys.executable, "-m", "dolfinx_invertible", "run", "collapse", "--quiet"]
@@ -399,8 +400,6 @@ def test_a_run_whose_cuts_ran_out_resumes_with_a_larger_budget(tmp_path):
 
 def test_run_scene_takes_its_output_directory_as_a_string(tmp_path):
     # As a FEniCS script passes it: a str, for a run and for its resumption.
-    from dolfinx_invertible.scenes import Parameters, get_scene, run_scene
-
     scene = get_scene("collapse")
     folder = str(tmp_path / "collapse")
     values = {**scene.defaults, "resolution": 1}
