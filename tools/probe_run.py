@@ -113,7 +113,15 @@ class Probe(RunObserver):
                 f"{iteration.energy} {iteration.direction:9s} step {iteration.step_length:.3g} "
                 f"cap {iteration.step_cap:.3g} Krylov {iteration.linear_iterations:4d} "
                 f"{iteration.linear_reason} AMG on {run.minimizer.directions.preconditioned_by}"
+                f"{self._trust_region(run)}"
             )
+
+    @staticmethod
+    def _trust_region(run) -> str:
+        region = run.minimizer.directions.trust_region
+        if region is None:
+            return ""
+        return f" radius {region.radius:.3g} rho {region.ratio:.3g}"
 
     def attempt(self, run, attempt) -> None:
         result = attempt.result

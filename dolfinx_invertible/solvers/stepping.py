@@ -76,6 +76,11 @@ class StepController:
     spends Newton's whole iteration budget, the retries then cost a vanishing share of the run,
     and a run whose ceiling has in fact lifted loses at most a factor of 2 in steps meanwhile.
 
+    An attempt that ran to Newton's iteration cap cost the whole budget (200 iterations by
+    default), where a step a cut too small costs a few easy steps more before growth has made
+    it up (each easy step doubles it): its retry is cut to ``cut²`` of it at once, so that
+    finding the size that passes costs half as many attempts at the cap.
+
     Attributes
     ----------
     step
@@ -150,8 +155,12 @@ class StepController:
                 grown = max(self.step, size)
             self.step = grown
 
-    def failed(self, size: float) -> bool:
-        """Record a failed attempt of ``size`` and cut; ``False`` once the cuts are used up."""
+    def failed(self, size: float, *, exhausted: bool = False) -> bool:
+        """Record a failed attempt of ``size`` and cut; ``False`` once the cuts are used up.
+
+        An ``exhausted`` attempt (one that ran to Newton's iteration cap) is cut twice over, to
+        ``size · cut²``, as one cut (see the class notes), where that stays above ``minimum``.
+        """
         self.cuts += 1
         self._consecutive_cuts += 1
         if self._reaches_ceiling(size):
@@ -159,6 +168,8 @@ class StepController:
         self._ceiling = min(self._ceiling, size)
         self._held = 0
         self.step = size * self.cut
+        if exhausted and self.step * self.cut >= self.minimum:
+            self.step *= self.cut
         return self._consecutive_cuts <= self._budget and self.step >= self.minimum
 
     def _reaches_ceiling(self, size: float) -> bool:
@@ -287,7 +298,7 @@ def take_step(
         restore(start)
         if rejection is not None:
             result = _rejected(result, rejection)
-        if not controller.failed(size):
+        if not controller.failed(size, exhausted=result.stage == "iteration cap"):
             if escalate is not None and escalate():
                 controller.restart(size)
                 escalated = True

@@ -32,6 +32,7 @@ from dolfinx_invertible.solvers import (
     rigid_body_near_nullspace,
     snes_reason_name,
     solve_load_steps,
+    take_step,
 )
 from dolfinx_invertible.solvers.line_search import EnergyLineSearch
 
@@ -366,9 +367,11 @@ def test_load_steps_cut_after_failure_then_succeed():
         case.set_time(t)
 
     results = solve_load_steps(limited, update_load, 1, on_step=lambda t, r: steps.append(t))
-    assert loads == [1.0, 0.0, 0.5, 1.0]  # try, restore, halved retry, the rest of the way
-    assert steps == [0.5, 1.0]
-    assert len(results) == 2 and all(result.converged for result in results)
+    # Try, restore, a retry at a quarter (the attempt ran to the cap: cut twice over), a step
+    # grown back to a half, the rest of the way.
+    assert loads == [1.0, 0.0, 0.25, 0.75, 1.0]
+    assert steps == [0.25, 0.75, 1.0]
+    assert len(results) == 3 and all(result.converged for result in results)
     tolerance = 1e-8 * np.abs(reference).max()
     np.testing.assert_allclose(case.u.x.array, reference, rtol=0, atol=tolerance)
 
@@ -388,12 +391,12 @@ def test_load_steps_raise_when_cuts_exhausted():
     message = str(error)
     assert "DIVERGED_MAX_IT" in message
     assert "load step 1 of 2" in message
-    assert "pseudo-time 0.125" in message  # 0.5 cut twice
+    assert "pseudo-time 0.03125" in message  # 0.5 cut twice over (at the cap), twice
     assert "last converged pseudo-time 0" in message
     assert (error.reason_name, error.step_index) == ("DIVERGED_MAX_IT", 1)
-    assert (error.time_reached, error.time_tried) == (0.0, 0.125)
+    assert (error.time_reached, error.time_tried) == (0.0, 0.03125)
     assert isinstance(error, RuntimeError)
-    assert loads == [0.5, 0.0, 0.25, 0.0, 0.125, 0.0]
+    assert loads == [0.5, 0.0, 0.125, 0.0, 0.03125, 0.0]
     assert not case.u.x.array.any()  # the state of pseudo-time 0
 
 
@@ -503,6 +506,36 @@ def test_a_size_that_keeps_failing_is_retried_after_exponentially_more_steps():
     assert controller.cuts == len(retries) + 1  # the first attempt at 0.1, then each retry
     # Without the backoff the failed size would have been retried after every accepted step.
     assert controller.cuts < len(controller.accepted) / 4
+
+
+def _failed(stage: str) -> SolveResult:
+    return SolveResult(False, -5, "DIVERGED_MAX_IT", 200, 0, 0.0, None, 0.0, stage=stage)
+
+
+@pytest.mark.parametrize(
+    ("stage", "sizes"),
+    [("iteration cap", [0.1, 0.025, 0.00625]), ("stalled", [0.1, 0.05, 0.025, 0.0125, 0.00625])],
+)
+def test_an_attempt_that_ran_to_the_iteration_cap_is_cut_twice_over(stage, sizes):
+    # Every step above 0.01 fails: after attempts at the cap the stepping gets there in two
+    # cuts, after attempts stopped sooner (stalled) in four.
+    controller = StepController(0.1, max_cuts=6)
+    tried = []
+
+    def attempt(start: float, end: float) -> SolveResult:
+        tried.append(end - start)
+        return _converged(3) if end - start <= 0.01 else _failed(stage)
+
+    size, result = take_step(controller, 0.0, 1.0, attempt, lambda t: None, lambda *a: "")
+    assert tried == pytest.approx(sizes) and size == pytest.approx(0.00625)
+    assert result.converged and controller.cuts == len(sizes) - 1
+
+
+def test_a_cut_twice_over_stops_at_the_smallest_step():
+    # Where a quarter would fall below the controller's floor and a half would not, the half.
+    controller = StepController(0.1, max_cuts=6, minimum=0.03)
+    assert controller.failed(0.1, exhausted=True) and controller.size() == pytest.approx(0.05)
+    assert not controller.failed(0.05, exhausted=True)  # below the floor either way
 
 
 def test_the_ceiling_lifts_once_a_step_of_its_size_is_accepted():
