@@ -78,8 +78,9 @@ class StepController:
 
     An attempt that ran to Newton's iteration cap cost the whole budget (200 iterations by
     default), where a step a cut too small costs a few easy steps more before growth has made
-    it up (each easy step doubles it): its retry is cut to ``cut²`` of it at once, so that
-    finding the size that passes costs half as many attempts at the cap.
+    it up (each easy step doubles it): its retry is cut to ``cut²`` of it at once, two of the
+    ``max_cuts``, so that finding the size that passes costs half as many attempts at the cap
+    and the cuts still run out (and the solver escalates) at the same smallest size.
 
     Attributes
     ----------
@@ -159,17 +160,19 @@ class StepController:
         """Record a failed attempt of ``size`` and cut; ``False`` once the cuts are used up.
 
         An ``exhausted`` attempt (one that ran to Newton's iteration cap) is cut twice over, to
-        ``size · cut²``, as one cut (see the class notes), where that stays above ``minimum``.
+        ``size · cut²``, where two of the ``max_cuts`` are left, and that spends both (see the
+        class notes): the cuts run out at the same smallest size, only the attempt between is
+        skipped.
         """
         self.cuts += 1
         self._consecutive_cuts += 1
+        cuts = 2 if exhausted and self._consecutive_cuts < self._budget else 1
+        self._budget -= cuts - 1
         if self._reaches_ceiling(size):
             self._hold *= 2
         self._ceiling = min(self._ceiling, size)
         self._held = 0
-        self.step = size * self.cut
-        if exhausted and self.step * self.cut >= self.minimum:
-            self.step *= self.cut
+        self.step = size * self.cut**cuts
         return self._consecutive_cuts <= self._budget and self.step >= self.minimum
 
     def _reaches_ceiling(self, size: float) -> bool:

@@ -321,9 +321,9 @@ def test_failed_time_step_raises_with_time_and_reason():
         petsc_options={"snes_max_it": 1},
     )  # fmt: skip
     before = u.x.array.copy()
-    # At dt, then at dt/4 (it ran to the cap: cut twice over, to the floor of one cut's budget),
-    # then once more at dt/4 after escalating to blended tangents.
-    with pytest.raises(SolverError, match=r"step 1 from t = 0 failed 3 times.*DIVERGED.*blended"):
+    # Twice (dt, then one cut: a budget of one cut leaves no room for a quarter), then twice
+    # more after escalating to blended tangents.
+    with pytest.raises(SolverError, match=r"step 1 from t = 0 failed 4 times.*DIVERGED.*blended"):
         dynamics.step()
     np.testing.assert_array_equal(u.x.array, before)
     assert dynamics.time == 0.0

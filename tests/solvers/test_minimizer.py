@@ -391,12 +391,13 @@ def test_load_steps_raise_when_cuts_exhausted():
     message = str(error)
     assert "DIVERGED_MAX_IT" in message
     assert "load step 1 of 2" in message
-    assert "pseudo-time 0.03125" in message  # 0.5 cut twice over (at the cap), twice
+    assert "failed 2 times" in message  # 0.5, then a quarter of it: both cuts spent
+    assert "pseudo-time 0.125" in message
     assert "last converged pseudo-time 0" in message
     assert (error.reason_name, error.step_index) == ("DIVERGED_MAX_IT", 1)
-    assert (error.time_reached, error.time_tried) == (0.0, 0.03125)
+    assert (error.time_reached, error.time_tried) == (0.0, 0.125)
     assert isinstance(error, RuntimeError)
-    assert loads == [0.5, 0.0, 0.125, 0.0, 0.03125, 0.0]
+    assert loads == [0.5, 0.0, 0.125, 0.0]
     assert not case.u.x.array.any()  # the state of pseudo-time 0
 
 
@@ -531,11 +532,13 @@ def test_an_attempt_that_ran_to_the_iteration_cap_is_cut_twice_over(stage, sizes
     assert result.converged and controller.cuts == len(sizes) - 1
 
 
-def test_a_cut_twice_over_stops_at_the_smallest_step():
-    # Where a quarter would fall below the controller's floor and a half would not, the half.
-    controller = StepController(0.1, max_cuts=6, minimum=0.03)
-    assert controller.failed(0.1, exhausted=True) and controller.size() == pytest.approx(0.05)
-    assert not controller.failed(0.05, exhausted=True)  # below the floor either way
+def test_a_cut_twice_over_spends_two_of_the_budget():
+    # Three cuts: a quarter (two), then a half (the one left), then none.
+    controller = StepController(0.1, max_cuts=3)
+    assert controller.failed(0.1, exhausted=True) and controller.size() == pytest.approx(0.025)
+    assert controller.failed(0.025, exhausted=True) and controller.size() == pytest.approx(0.0125)
+    assert not controller.failed(0.0125, exhausted=True)
+    assert controller.consecutive_cuts == 3  # failed attempts, as the messages count them
 
 
 def test_the_ceiling_lifts_once_a_step_of_its_size_is_accepted():

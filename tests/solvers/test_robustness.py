@@ -20,12 +20,7 @@ import ufl
 
 from dolfinx_invertible import C2, Material, NeoHookean, _compat, lame
 from dolfinx_invertible.scenes import Parameters, RunObserver, get_scene, run_scene
-from dolfinx_invertible.solvers import (
-    HyperelasticProblem,
-    ImplicitDynamics,
-    SolverError,
-    StepController,
-)
+from dolfinx_invertible.solvers import HyperelasticProblem, ImplicitDynamics, SolverError
 
 SCALES = (1.0e-6, 1.0e-3, 1.0, 1.0e3, 1.0e6)
 KSP_ITERATION_CAP = ("DIVERGED_ITS", "DIVERGED_MAX_IT")
@@ -253,16 +248,14 @@ def test_blended_tangent_restores_fast_convergence_out_of_a_collapse():
     assert blended.energy == pytest.approx(projected.energy, rel=1e-9)
 
 
-def _collapsed_cube_dynamics(
-    dt: float, controller: StepController | None = None, **petsc_options
-) -> ImplicitDynamics:
+def _collapsed_cube_dynamics(dt: float, **petsc_options) -> ImplicitDynamics:
     mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4, dolfinx.mesh.CellType.tetrahedron)
     u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
     u.interpolate(lambda x: -0.95 * (x - 0.5))
     mu, lam = lame(1.0e3, 0.49)
     return ImplicitDynamics(
         u, Material(NeoHookean(mu=mu, lam=lam), C2()), density=1.0e3, dt=dt,
-        controller=controller, petsc_options=petsc_options,
+        petsc_options=petsc_options,
     )  # fmt: skip
 
 
@@ -270,22 +263,19 @@ def test_a_step_whose_cuts_run_out_escalates_to_blended_tangents():
     """dt·c/L = 0.1 out of the collapse, 50 Newton iterations an attempt: projected Newton fails
     at every cut, the blend does not.
 
-    With the smallest step at dt/64 and without the escalation the step fails at every size
-    down to it (each attempt at the cap of 50, so cut to a quarter: dt, dt/4, dt/16, dt/64);
-    with it, dt/64 is tried again with blended tangents and converges. (At the default budget
-    projected Newton gets through a cut on its own: below.)
+    Without the escalation the step fails at every size down to dt/64 (each attempt at the cap
+    of 50, so cut to a quarter: dt, dt/4, dt/16, dt/64); with it, dt/64 is tried again with
+    blended tangents and converges. (At the default budget projected Newton gets through a cut
+    on its own: below.)
     """
-
-    def floor() -> StepController:
-        return StepController(0.1, minimum=0.1 / 64)
-
-    refused = _collapsed_cube_dynamics(0.1, floor(), snes_max_it=50)
+    refused = _collapsed_cube_dynamics(0.1, snes_max_it=50)
     refused.problem.escalate = lambda: False
-    with pytest.raises(SolverError, match="failed 4 times.*below 0.00156"):
+    # 4 = the first attempt and three cuts to a quarter, the default max_cuts = 6 halvings.
+    with pytest.raises(SolverError, match="failed 4 times"):
         refused.step()
     assert refused.controller.escalations == 0  # refused above
 
-    escalated = _collapsed_cube_dynamics(0.1, floor(), snes_max_it=50)
+    escalated = _collapsed_cube_dynamics(0.1, snes_max_it=50)
     result = escalated.step()
     assert result.converged and result.blended_iterations > 0
     # regression pin: observed 16 on 2026-12-04 (a5eadce) with
@@ -294,7 +284,8 @@ def test_a_step_whose_cuts_run_out_escalates_to_blended_tangents():
     # The cuts run out as in the refused run, so at least one escalation; the mode stays, so
     # there is nothing to escalate to a second time.
     assert escalated.controller.escalations == 1
-    # 0.1 / 4³: the three cuts to the floor, then that size again with blended tangents.
+    # 0.1 / 2⁶: the six halvings of the cuts (three quarters), then that size again with
+    # blended tangents.
     assert escalated.controller.statistics()["step_min"] == pytest.approx(0.1 / 64)
     assert escalated.problem.solver.blend_after == 0  # the mode stays for the later steps
 
