@@ -166,13 +166,13 @@ class StepController:
         """
         self.cuts += 1
         self._consecutive_cuts += 1
-        cuts = 2 if exhausted and self._consecutive_cuts < self._budget else 1
-        self._budget -= cuts - 1
+        halvings = 2 if exhausted and self._consecutive_cuts < self._budget else 1
+        self._budget -= halvings - 1
         if self._reaches_ceiling(size):
             self._hold *= 2
         self._ceiling = min(self._ceiling, size)
         self._held = 0
-        self.step = size * self.cut**cuts
+        self.step = size * self.cut**halvings
         return self._consecutive_cuts <= self._budget and self.step >= self.minimum
 
     def _reaches_ceiling(self, size: float) -> bool:
