@@ -7,13 +7,22 @@ import pytest
 from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
-from dolfinx_invertible.solvers.truncated_cg import truncated_cg
+from dolfinx_invertible.solvers import truncated_cg as truncated_cg_module
+from dolfinx_invertible.solvers.truncated_cg import DEFINITE_FLOOR, MINRES_BUDGET, truncated_cg
 
 REASONS = PETSc.KSP.ConvergedReason
 
 
-def _matrix(dense: np.ndarray) -> PETSc.Mat:
-    matrix = PETSc.Mat().createDense(dense.shape, array=dense.copy(), comm=PETSc.COMM_SELF)
+def _matrix(operator: np.ndarray) -> PETSc.Mat:
+    """A dense matrix, or a diagonal one (sparse) from a vector of its entries."""
+    if operator.ndim == 1:
+        matrix = PETSc.Mat().createAIJ((operator.size, operator.size), nnz=1, comm=PETSc.COMM_SELF)
+        for row, entry in enumerate(operator):
+            matrix.setValue(row, row, entry)
+    else:
+        matrix = PETSc.Mat().createDense(
+            operator.shape, array=operator.copy(), comm=PETSc.COMM_SELF
+        )
     matrix.assemble()
     return matrix
 
@@ -27,6 +36,8 @@ def _solve(
     restart: bool = True,
     radius: float = np.inf,
     indefinite: bool = False,
+    max_it: int = 500,
+    definite_iterations: int | None = None,
 ):
     A, P = _matrix(operator), _matrix(preconditioner)
     b = PETSc.Vec().createWithArray(rhs.copy(), comm=PETSc.COMM_SELF)
@@ -38,8 +49,9 @@ def _solve(
     context.restart = restart
     context.radius = radius
     context.indefinite = indefinite
+    context.definite_iterations = definite_iterations
     ksp.getPC().setType(pc)
-    ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=500)
+    ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=max_it)
     ksp.solve(b, x)
     result = (ksp.getConvergedReason(), ksp.getIterationNumber(), x.getArray().copy(), context)
     ksp.destroy()
@@ -149,6 +161,51 @@ def test_indefinite_newton_keeps_the_projected_direction_where_the_exact_one_asc
     assert reason == _compat.KSP_CONVERGED_NEGATIVE_CURVATURE and context.outcome == "projected"
     np.testing.assert_allclose(x, np.linalg.solve(projected, rhs), rtol=1e-12)
     assert rhs @ x > 0.0
+
+
+def _nearly_singular(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A diagonal operator with eigenvalues of both signs down to 10⁻³, the clamped one, and a
+    right-hand side along which the exact direction descends: MINRES needs thousands of
+    iterations (6 814 at n = 1 000), CG on the clamped operator a few hundred (428)."""
+    negative = -np.logspace(-3.0, 0.0, n // 10)
+    positive = np.logspace(-3.0, 0.0, n - n // 10)
+    operator = np.concatenate([negative, positive])
+    rhs = np.concatenate([1e-3 * np.ones(n // 10), np.ones(n - n // 10)])
+    return operator, np.abs(operator), rhs
+
+
+def test_a_definite_solve_sets_the_budget_of_minres():
+    """The iterations of a solve that converged on a definite operator are MINRES's unit."""
+    operator, projected, rhs = _nearly_singular(1000)
+    reason, iterations, _, context = _solve(projected, projected, rhs, "none", max_it=10_000)
+    assert reason > 0 and context.outcome == "exact"
+    assert context.definite_iterations == iterations > DEFINITE_FLOOR
+
+
+def test_minres_stops_at_its_budget_and_the_projected_direction_comes_back(monkeypatch):
+    """Past negative curvature MINRES gets MINRES_BUDGET times the last definite solve's
+    iterations (at least DEFINITE_FLOOR of them): on a nearly singular exact tangent it stops
+    there and the projected tangent's direction comes back. With an unbounded budget the same
+    solve runs MINRES to the exact direction, after more iterations than the budget allows."""
+    operator, projected, rhs = _nearly_singular(1000)
+    budget = MINRES_BUDGET * DEFINITE_FLOOR
+    exact_direction = rhs / operator
+    assert rhs @ exact_direction > 0.0  # MINRES's direction would be kept: only the budget stops it
+    reason, iterations, x, context = _solve(
+        operator, projected, rhs, "none", indefinite=True, max_it=50_000, definite_iterations=1
+    )
+    assert reason == _compat.KSP_CONVERGED_NEGATIVE_CURVATURE and context.outcome == "projected"
+    np.testing.assert_allclose(x, rhs / projected, rtol=1e-6)
+    _, projected_alone, _, _ = _solve(projected, projected, rhs, "none", max_it=50_000)
+    assert iterations == context.curvature_iteration + budget + projected_alone
+
+    monkeypatch.setattr(truncated_cg_module, "MINRES_BUDGET", 10**6)
+    reason, iterations, x, context = _solve(
+        operator, projected, rhs, "none", indefinite=True, max_it=50_000, definite_iterations=1
+    )
+    assert reason > 0 and context.outcome == "exact"
+    np.testing.assert_allclose(x, exact_direction, rtol=1e-5)
+    assert iterations - context.curvature_iteration > budget
 
 
 # -- Steihaug–Toint: CG bounded by a trust region in the preconditioner's norm -----------------
