@@ -44,13 +44,12 @@ class ConvexityTimeScale(RunObserver):
         x = problem.create_vector()
         _compat.petsc_vector(run.u).copy(x)
         matrix = problem.create_matrix()
-        # The inertia term's weight scales M: 0 leaves K, 1 adds M once.
-        stepper._weight.value = 0.0
-        problem.J(None, x, matrix, matrix)
+        with stepper.inertia_weight(0.0):
+            problem.J(None, x, matrix, matrix)
         elastic = _scipy(matrix).copy()
-        stepper._weight.value = 1.0
         matrix.zeroEntries()
-        problem.J(None, x, matrix, matrix)
+        with stepper.inertia_weight(1.0):
+            problem.J(None, x, matrix, matrix)
         lumped = np.asarray((_scipy(matrix) - elastic).sum(axis=1)).ravel()
         scale = scipy.sparse.diags(1.0 / np.sqrt(lumped))
         scaled = scale @ elastic @ scale

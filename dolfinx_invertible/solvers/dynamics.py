@@ -16,8 +16,9 @@ are :class:`~dolfinx_invertible.solvers.stepper.Stepper` siblings under the same
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from mpi4py import MPI
@@ -228,6 +229,20 @@ class ImplicitDynamics(Stepper):
             f"{result.describe()}"
         )
 
+    @contextlib.contextmanager
+    def inertia_weight(self, weight: float) -> Iterator[None]:
+        """Assemble with the inertia term's weight (1/dt² in a step) set to ``weight``.
+
+        0 leaves the elastic terms and the loads alone, 1 adds the mass term once; the step's
+        weight is restored on leaving.
+        """
+        saved = self._weight.value.copy()
+        self._weight.value = weight
+        try:
+            yield
+        finally:
+            self._weight.value = saved
+
     def static_acceleration(self) -> np.ndarray:
         """Return a with M a = −∇(Π − ∫ρ g·u) at the current ``u``: the momentum balance at rest.
 
@@ -236,13 +251,9 @@ class ImplicitDynamics(Stepper):
         """
         space = self.u.function_space
         energy_problem = self.problem.energy_problem
-        weight = self._weight.value.copy()
-        self._weight.value = 0.0
-        try:
+        with self.inertia_weight(0.0):
             force = energy_problem.create_vector()
             energy_problem.F(None, _compat.petsc_vector(self.u), force)
-        finally:
-            self._weight.value = weight
         trial, test = ufl.TrialFunction(space), ufl.TestFunction(space)
         mass_form = dolfinx.fem.form(self.density * ufl.dot(trial, test) * self._mass_measure)
         mass = _compat.create_matrix(mass_form)
