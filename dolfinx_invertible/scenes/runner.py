@@ -8,8 +8,9 @@ The output of a run in its directory (``results/SCENE/`` by default;
   goes on and after it stops (also after SIGKILL, up to the last completed step);
 - ``SCENE.jsonl``: one line per completed step (time, energy, iterations, inverted cells, ...);
 - ``summary.json``: every parameter used and how the run went, written at the end, also after a
-  failure or an interrupt (``completed`` false and the reason given); the previous run's summary
-  is removed when a run starts, so a summary never belongs to another run
+  failure or an interrupt (``completed`` false and the reason given), and while the run goes on
+  the summary so far (``"running": true``, after every step and failed attempt); the previous
+  run's summary is removed when a run starts, so a summary never belongs to another run
   (:mod:`.summary`);
 - ``checkpoint.npz`` (with ``checkpoint_every``): the state to continue from
   (:mod:`.checkpoints`), and ``checkpoint-part-G-R-of-N.npz``, each rank's part of the state
@@ -108,14 +109,32 @@ def run_scene(
 def _advance(run: Run, observers: list[RunObserver], output: Path | None) -> None:
     """Step the run to its end under the observers' watch; a failure ends it too.
 
-    An interrupt (SIGINT, SIGTERM) writes the summary so far and is raised again.
+    An interrupt (SIGINT, SIGTERM) writes the summary so far and is raised again. Until the
+    run ends, ``summary.json`` holds the summary so far with ``"running": true``, rewritten
+    after every step and every failed attempt: a run killed where it cannot write (SIGKILL, or
+    a signal that arrives inside a long PETSc call and is followed by mpirun's kill) still
+    leaves what it had done.
     """
     _watch(run, observers)
     try:
         with Signals() as signals:
+
+            def progress() -> None:
+                if output is not None and run.mesh.comm.rank == 0:
+                    summary = summary_so_far(run)
+                    summary["running"] = True
+                    _write_json(output / "summary.json", json_ready(summary))
+
+            def attempt_done(attempt) -> None:
+                if not attempt.accepted:
+                    with signals.deferred():
+                        progress()
+
             with signals.deferred():
                 for observer in observers:
                     observer.start(run)
+                progress()
+            run.stepper.add_monitor(on_attempt=attempt_done)
 
             def step_done(t: float, result) -> None:
                 # Counted and written as one: an interruption between the two would leave a
@@ -125,6 +144,7 @@ def _advance(run: Run, observers: list[RunObserver], output: Path | None) -> Non
                     run.scene.record(run)
                     for observer in observers:
                         observer.step(run)
+                    progress()
 
             try:
                 run.stepper.advance(run.scene.end_time(run.parameters), on_step=step_done)

@@ -84,6 +84,20 @@ def run_and_kill(folder, launcher, at_line: int, command=(*COMMAND, *RUN)) -> in
     return len(log.read_text().splitlines())
 
 
+def left_a_running_summary(folder, written: int) -> dict:
+    """The summary a killed run leaves: marked running, one step behind its log at most.
+
+    ``written`` lines of the step log: the initial state and ``written - 1`` steps; the kill may
+    land between a step's log line and its summary.
+    """
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["running"] is True and summary["completed"] is False
+    assert written - 2 <= summary["steps"] <= written - 1
+    if summary["steps"]:
+        assert summary["time"] > 0.0 and summary["newton_iterations"]["total"] > 0
+    return summary
+
+
 def final_displacement(folder, end: float = 0.4) -> tuple[np.ndarray, np.ndarray]:
     """Return the displacement nodes (sorted by coordinates) and values of the last checkpoint."""
     with np.load(folder / "checkpoint.npz") as data:
@@ -121,7 +135,7 @@ def test_a_killed_run_resumes_to_the_end_of_the_same_run(
     folder = tmp_path / "run"
     at_line = random.Random().randint(5, 36)  # the initial state and 4..35 steps
     written = run_and_kill(folder, launchers[killed_on], at_line)
-    assert not (folder / "summary.json").exists()
+    left_a_running_summary(folder, written)
     resumed_from = latest_checkpoint(folder)[1]["steps_written"]
     # Every rank's part after every step, two generations: at most the step in flight is lost.
     assert written - 2 <= resumed_from <= written
@@ -193,7 +207,7 @@ def test_a_killed_quasi_static_run_resumes_to_the_end_of_the_same_run(tmp_path):
     folder = tmp_path / "run"
     at_line = random.Random().randint(2, 5)  # the initial state and 1..4 of the 6 load steps
     written = run_and_kill(folder, [], at_line, command=COOK)
-    assert not (folder / "summary.json").exists()
+    left_a_running_summary(folder, written)
     state = latest_checkpoint(folder)[1]
     assert written - 2 <= state["steps_written"] <= written
     assert 0.0 < state["stepper"]["time"] < 1.0  # a pseudo-time part of the way
@@ -236,8 +250,8 @@ def test_a_killed_contact_run_resumes_to_the_end_of_the_same_run(tmp_path):
     assert whole.returncode == 0, whole.stderr
     folder = tmp_path / "run"
     # Killed while the cubes land: the barrier acts from about step 46 on.
-    run_and_kill(folder, [], random.Random().randint(48, 58), command=BOWL)
-    assert not (folder / "summary.json").exists()
+    written = run_and_kill(folder, [], random.Random().randint(48, 58), command=BOWL)
+    left_a_running_summary(folder, written)
     completed = subprocess.run([*BOWL[:5], "--resume", str(folder)], capture_output=True,
                                text=True, timeout=600, env=ENVIRONMENT)  # fmt: skip
     assert completed.returncode == 0, completed.stderr
