@@ -205,6 +205,7 @@ def test_interrupted_run_writes_its_summary(tmp_path, sent):
     assert process.returncode == 130, process.stderr.read()[-3000:]
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["completed"] is False and summary["interrupted"] is True
+    assert "running" not in summary
     assert summary["reason"] == f"interrupted by {sent.name}"
     assert summary["steps"] >= 2
     assert _readable_steps(tmp_path / "scatter.xdmf") >= summary["steps"] + 1
@@ -218,4 +219,8 @@ def test_killed_run_leaves_an_xdmf_readable_up_to_its_last_step(tmp_path):
     process.wait(timeout=60)
     logged = len((tmp_path / "scatter.jsonl").read_text().splitlines())
     assert _readable_steps(tmp_path / "scatter.xdmf") >= logged - 1
-    assert not (tmp_path / "summary.json").exists()  # nothing looks complete
+    # This run's summary so far, which does not look complete: running, no outcome.
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["running"] is True and summary["completed"] is False
+    assert "outcome" not in summary and summary["scene"] == "scatter"
+    assert logged - 2 <= summary["steps"] <= logged - 1
