@@ -3,7 +3,8 @@
 A step along the Newton direction is accepted when Π decreases by the Armijo amount
 (``sufficient_decrease`` times the exact directional derivative; the full step whenever it
 qualifies). Where the change of Π is below Π's own rounding error, the residual decides
-instead: the step is accepted if it reduces the residual norm. If no step of up to
+instead: the step is accepted if it reduces the residual norm, unless a longer step of the same
+direction raised Π by more than that error (the direction then ascends). If no step of up to
 ``max_backtracks`` halvings qualifies, the search fails, unless the predicted decrease itself is
 below rounding, in which case the iterate is converged as far as floating point can tell.
 
@@ -178,16 +179,24 @@ class EnergyLineSearch:
         """
         rounding = self.rounding(terms)
         fraction = 1.0
+        # Once a longer step of this direction raised Π by more than its rounding error, the
+        # direction ascends as far as Π can tell, and a shorter step whose change is lost in
+        # the rounding is no progress: the residual test is not asked then. Asked, it accepts
+        # steps ever closer to noise from a point where the residual is not Π's gradient (or Π
+        # has a kink), and the iterates creep uphill at round-off until the progress test
+        # stops them (docs/performance.md, the stretch bar at 16).
+        rose = False
         for _ in range(self.max_backtracks + 1):
             decrease = fraction * slope
             self._trial.waxpy(-1.0, y, x)
             energy, _ = self.energy_at(self._trial)
             if energy <= start - self.sufficient_decrease * decrease:
                 return fraction
-            if abs(energy - start) <= rounding:
+            if abs(energy - start) <= rounding and not rose:
                 self.problem.F(None, self._trial, self._work)
                 if self._work.norm() < residual_norm:
                     return fraction
+            rose = rose or (math.isfinite(energy) and energy - start > rounding)
             if watch and fraction == 1.0 and math.isfinite(energy):
                 x.copy(self._origin)
                 y.copy(self._origin_direction)

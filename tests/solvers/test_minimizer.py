@@ -177,6 +177,19 @@ def test_neo_hookean_load_steps_converge_with_energy_decrease():
     assert tip[2] < -0.5  # hangs down by a visible fraction of its length
 
 
+def _first_newton_direction(load: float):
+    """The cantilever at rest under ``load``, its minimiser, Newton direction, state, residual."""
+    case = cantilever()
+    solver = EnergyMinimizer(case.problem)
+    case.set_time(load)
+    direction = case.problem.create_vector()
+    solver.newton_direction(direction)
+    x = _compat.petsc_vector(case.u).copy()
+    residual = case.problem.create_vector()
+    case.problem.F(None, x, residual)
+    return case, solver, direction, x, residual
+
+
 def test_line_search_starts_from_the_energy_of_the_point_it_accepted(monkeypatch):
     """The energy at the point a search accepted is not assembled again when the next starts.
 
@@ -184,14 +197,7 @@ def test_line_search_starts_from_the_energy_of_the_point_it_accepted(monkeypatch
     the initial guess along its Newton direction, then the energy at the accepted point, which
     must cost no assembly, while any other point costs one.
     """
-    case = cantilever()
-    solver = EnergyMinimizer(case.problem)
-    case.set_time(0.5)
-    direction = case.problem.create_vector()
-    solver.newton_direction(direction)
-    x = _compat.petsc_vector(case.u).copy()
-    residual = case.problem.create_vector()
-    case.problem.F(None, x, residual)
+    case, solver, direction, x, residual = _first_newton_direction(0.5)
     search = EnergyLineSearch(case.problem, rounding=solver.tolerances.energy_rounding)
     assemblies = []
     terms = case.problem.energy_terms
@@ -207,6 +213,53 @@ def test_line_search_starts_from_the_energy_of_the_point_it_accepted(monkeypatch
     assert energy < search.energy_at(x)[0]  # the start: assembled again, and higher
     assert len(assemblies) == trials + 1
     assert energy == pytest.approx(case.problem.objective(None, accepted), rel=1e-14)
+
+
+def test_a_direction_that_raises_the_energy_is_not_taken_at_the_rounding_floor(monkeypatch):
+    """After a resolvable rise of Π along a direction, the residual test takes no shorter step.
+
+    The cantilever at load 0.05 from rest and its Newton direction y, with Π given a kink at the
+    start along y, 2 (rᵀy / |y|²) |yᵀ(u − u₀)|, which the residual does not see: Π then rises
+    along −y at every length. The search must fail (halving down to where Π's change is lost in
+    its rounding must not count as progress), although the residual falls along y. Without the
+    kink the full step is taken.
+    """
+    case, solver, newton, x, residual = _first_newton_direction(0.05)
+    slope = residual.dot(newton)
+    assert slope > 0.0
+
+    search = EnergyLineSearch(case.problem, rounding=solver.tolerances.energy_rounding)
+    direction = newton.copy()
+    assert search.backtrack(x, direction, residual) is None and search.fraction == 1.0
+
+    terms = case.problem.energy_terms
+    weight = 2.0 * slope / newton.dot(newton)
+    offset = case.problem.create_vector()
+
+    def with_a_kink():
+        _compat.petsc_vector(case.u).copy(offset)
+        offset.axpy(-1.0, x)
+        return np.append(terms(), weight * abs(newton.dot(offset)))
+
+    monkeypatch.setattr(case.problem, "energy_terms", with_a_kink)
+    # The premise: the residual falls along y at the shortest step the search tries, where the
+    # change of Π is below its rounding error.
+    shortest = x.copy()
+    shortest.axpy(-(0.5**search.max_backtracks), newton)
+    after = case.problem.create_vector()
+    case.problem.F(None, shortest, after)
+    assert after.norm() < residual.norm()
+    # Without the watchdog, as the trust region searches (a watch would take the full step).
+    search = EnergyLineSearch(
+        case.problem, rounding=solver.tolerances.energy_rounding, watchdog_steps=0
+    )
+    energy, rounding = search.energy_at(x)[0], search.rounding(search.energy_at(x)[1])
+    assert search.energy_at(shortest)[0] - energy <= rounding
+
+    direction = newton.copy()
+    stop = search.backtrack(x, direction, residual)
+    assert stop is not None and not stop.converged and "decreases the energy" in stop.detail
+    assert search.fraction == 0.0 and direction.norm() == 0.0
 
 
 def test_split_forms_match_single_form():
