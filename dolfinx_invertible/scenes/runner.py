@@ -120,10 +120,7 @@ def _advance(run: Run, observers: list[RunObserver], output: Path | None) -> Non
         with Signals() as signals:
 
             def progress() -> None:
-                if output is not None and run.mesh.comm.rank == 0:
-                    summary = summary_so_far(run)
-                    summary["running"] = True
-                    _write_json(output / "summary.json", json_ready(summary))
+                _write_summary_so_far(run, output, running=True)
 
             def attempt_done(attempt) -> None:
                 if not attempt.accepted:
@@ -162,12 +159,17 @@ def _advance(run: Run, observers: list[RunObserver], output: Path | None) -> Non
     except RunInterrupted as interrupt:
         _close(run, observers)
         # Ranks may be interrupted at different points: no collective operation from here on.
-        summary = summary_so_far(run)
-        summary.update(reason=str(interrupt), interrupted=True)
-        if output is not None and run.mesh.comm.rank == 0:
-            _write_json(output / "summary.json", json_ready(summary))
+        _write_summary_so_far(run, output, reason=str(interrupt), interrupted=True)
         raise
     _close(run, observers)
+
+
+def _write_summary_so_far(run: Run, output: Path | None, **marks: Any) -> None:
+    """Write the summary so far with ``marks`` added, from rank 0 alone (nothing collective)."""
+    if output is not None and run.mesh.comm.rank == 0:
+        summary = summary_so_far(run)
+        summary.update(marks)
+        _write_json(output / "summary.json", json_ready(summary))
 
 
 def _close(run: Run, observers: list[RunObserver]) -> None:
