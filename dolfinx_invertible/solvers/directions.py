@@ -51,6 +51,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
 from petsc4py import PETSc
 
 from dolfinx_invertible.solvers.nullspace import rigid_body_near_nullspace
@@ -230,6 +231,8 @@ class NewtonDirections:
         self.tangent = tangent
         self.trust_region = trust_region
         self._assembled = assembled
+        #: Local indices of the owned Dirichlet rows (components unrolled).
+        self.fixed = np.flatnonzero(~problem.free_owned).astype(np.int32)
         near_nullspace = rigid_body_near_nullspace(problem.u.function_space)
         self.matrix = problem.create_matrix()
         self.matrix.setNearNullSpace(near_nullspace)
@@ -259,6 +262,7 @@ class NewtonDirections:
             self._ksp = ksp  # the context lives as long as this reference (truncated_cg)
             self.truncated = truncated_cg(ksp)
             self.truncated.operator = self.matrix
+            self.truncated.fixed = self.fixed
 
     @property
     def replaceable(self) -> bool:
@@ -414,21 +418,35 @@ class NewtonDirections:
         return self.blend_after is not None and self.projected_iterations >= self.blend_after
 
     def settle(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
-        """Solve again with AMG on K₊ where AMG on the exact tangent failed at ``x``.
+        """Make ``y`` the iteration's direction: solved again where needed, exact on Dirichlet rows.
 
         The truncated CG on K with the exact tangent's own preconditioner stops at negative
-        curvature (or an indefinite preconditioner); the direction is then the iterative path's
-        usual one, and K₊ preconditions the exact iterations from now on (until one meets no
-        negative curvature). Call before :meth:`judge`.
+        curvature (or an indefinite preconditioner); where it did at ``x``, the direction is
+        solved again with AMG on K₊, the iterative path's usual one, and K₊ preconditions the
+        exact iterations from now on (until one meets no negative curvature). Then the
+        Dirichlet rows get their exact step (:meth:`_keep_dirichlet_rows`). Call before
+        :meth:`judge`.
         """
-        if self.preconditioned_by != "exact" or ksp.getConvergedReason() > 0:
-            return
-        self.preconditioned_by = "exact failed"
-        self.exact_preconditioner = False
-        self._assemble_tangent_into(x, self.preconditioner, True)
-        self.truncated.restart = True
-        self.solve(ksp, y, replacement=False)
-        self.replacement_linear_iterations += int(ksp.getIterationNumber())
+        if self.preconditioned_by == "exact" and ksp.getConvergedReason() <= 0:
+            self.preconditioned_by = "exact failed"
+            self.exact_preconditioner = False
+            self._assemble_tangent_into(x, self.preconditioner, True)
+            self.truncated.restart = True
+            self.solve(ksp, y, replacement=False)
+            self.replacement_linear_iterations += int(ksp.getIterationNumber())
+        self._keep_dirichlet_rows(y)
+
+    def _keep_dirichlet_rows(self, y: PETSc.Vec) -> None:
+        """Give ``y`` the Newton step of the Dirichlet rows exactly: their residual, x − g.
+
+        There the tangent is the identity, so a factorisation gives it anyway; an iterative
+        solve stopped early does not (AMG's coarse corrections reach the Dirichlet nodes), and
+        a direction that moves a clamped node changes Π by the work of its reaction force,
+        which the residual's Dirichlet row does not show: the energy then disagrees with the
+        model along the direction (docs/performance.md, the stretch bar at 16).
+        """
+        if len(self.fixed):
+            y.array[self.fixed] = self.residual.array_r[self.fixed]
 
     def replace(self, x: PETSc.Vec, y: PETSc.Vec, ksp: PETSc.KSP) -> None:
         """Compute the direction at ``x`` again with the strategy in effect."""
@@ -442,6 +460,7 @@ class NewtonDirections:
         if kind == BlendedTangent.kind:
             self.blended_iterations += 1
             self.direction_tangent = None
+        self._keep_dirichlet_rows(y)
 
     def escalate(self, ksp: PETSc.KSP) -> bool:
         """Blend from the first projected iteration on, for good; ``False`` if nothing changes.

@@ -182,9 +182,10 @@ class EnergyLineSearch:
         # Once a longer step of this direction raised Π by more than its rounding error, the
         # direction ascends as far as Π can tell, and a shorter step whose change is lost in
         # the rounding is no progress: the residual test is not asked then. Asked, it accepts
-        # steps ever closer to noise from a point where the residual is not Π's gradient (or Π
-        # has a kink), and the iterates creep uphill at round-off until the progress test
-        # stops them (docs/performance.md, the stretch bar at 16).
+        # steps ever closer to noise wherever Π and the residual disagree along the direction
+        # (a kink of Π; directions that moved clamped nodes did, docs/performance.md, the
+        # stretch bar at 16), and the iterates creep uphill at round-off until the progress
+        # test stops them.
         rose = False
         for _ in range(self.max_backtracks + 1):
             decrease = fraction * slope

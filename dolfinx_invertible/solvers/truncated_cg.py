@@ -36,6 +36,14 @@ cells: MINRES ran to PETSc's cap of 10 000 in four iterations of one step, and c
 fifth after 8 200 to a step of 2·10⁻⁴ of itself, against 50–90 for the projected tangent's
 solves; out of the collapse at 32³ × 6 cells it converged in 2.5–5 times the definite solves'
 iterations, docs/performance.md).
+
+On Dirichlet rows both tangents are the identity and couple to nothing; there the solver
+replaces the preconditioner by the identity (:attr:`TruncatedCG.fixed`), which is what it is
+meant to approximate. AMG's coarse corrections otherwise reach the clamped nodes, and a solve
+stopped early (on the trust region's boundary, at negative curvature, after a few iterations)
+would move them: Π then changes by the work of their reaction forces, which the residual's
+Dirichlet rows (x − g) do not show, the energy disagrees with the model along the step, and the
+iterates leave the boundary values (docs/performance.md, the stretch bar at 16).
 """
 
 from __future__ import annotations
@@ -44,6 +52,7 @@ import atexit
 import math
 import weakref
 
+import numpy as np
 from petsc4py import PETSc
 
 from dolfinx_invertible import _compat
@@ -115,6 +124,10 @@ class TruncatedCG:
         The iterations of the last solve that converged on a definite operator (K without
         negative curvature met, a definite blend, or K₊), ``None`` before the first; the unit
         of MINRES's budget.
+    fixed
+        Local indices of the owned rows where K and K₊ are the identity and couple to nothing
+        (Dirichlet rows); empty by default. The preconditioner is replaced by the identity
+        there (see the module description).
     """
 
     def __init__(self) -> None:
@@ -129,6 +142,7 @@ class TruncatedCG:
         self.boundary = False
         self.step_norm = math.nan
         self.definite_iterations: int | None = None
+        self.fixed = np.zeros(0, dtype=np.int32)
         self._work: list[PETSc.Vec] | None = None
 
     def setUp(self, ksp: PETSc.KSP) -> None:  # noqa: N802 (petsc4py's name)
@@ -157,10 +171,9 @@ class TruncatedCG:
         """Solve with the exact tangent, a definite blend, or the projected tangent."""
         projected, _ = ksp.getOperators()
         exact = projected if self.operator is None else self.operator
-        pc = ksp.getPC()
         rtol, atol, _, max_it = ksp.getTolerances()
         z = self._vectors(b)[1]
-        pc.apply(b, z)
+        self._precondition(ksp, b, z)
         bz = b.dot(z)
         self.curvature_iteration = None
         self.weight = 1.0
@@ -231,7 +244,6 @@ class TruncatedCG:
         too, where ``restart`` allows it).
         """
         r, z, p, q, k = self._vectors(b)[:5]
-        pc = ksp.getPC()
 
         def apply(vector, result) -> tuple[float, float]:
             # Returns (pᵀK p, pᵀK₊ p) where computed, for the weight that keeps p definite.
@@ -254,7 +266,7 @@ class TruncatedCG:
             apply(x, q)
             b.copy(r)
             r.axpy(-1.0, q)
-        pc.apply(r, z)
+        self._precondition(ksp, r, z)
         rz = r.dot(z)
         iteration = start
         if not (math.isfinite(rz) and rz >= 0.0):
@@ -294,7 +306,7 @@ class TruncatedCG:
                 return _REASONS.CONVERGED_STEP_LENGTH, iteration + 1, math.nan
             x.axpy(alpha, p)
             r.axpy(-alpha, q)
-            pc.apply(r, z)
+            self._precondition(ksp, r, z)
             rz_next = r.dot(z)
             iteration += 1
             xx += alpha * (2.0 * xp + alpha * pp)
@@ -323,13 +335,12 @@ class TruncatedCG:
         norm, as CG's, and falls monotonically.
         """
         v_old, v, v_new, z, z_new, w_old, w, w_new, q = self._vectors(b)[:9]
-        pc = ksp.getPC()
         x.set(0.0)
         v_old.set(0.0)
         w_old.set(0.0)
         w.set(0.0)
         b.copy(v)
-        pc.apply(v, z)
+        self._precondition(ksp, v, z)
         gamma = math.sqrt(max(v.dot(z), 0.0))
         gamma_old, eta = 1.0, gamma
         c_old, c, s_old, s = 1.0, 1.0, 0.0, 0.0
@@ -342,7 +353,7 @@ class TruncatedCG:
             q.copy(v_new)
             v_new.axpy(-delta / gamma, v)
             v_new.axpy(-gamma / gamma_old, v_old)
-            pc.apply(v_new, z_new)
+            self._precondition(ksp, v_new, z_new)
             gamma_new_squared = v_new.dot(z_new)
             if not (math.isfinite(gamma_new_squared) and gamma_new_squared >= 0.0):
                 return _REASONS.DIVERGED_INDEFINITE_PC, iteration
@@ -376,6 +387,12 @@ class TruncatedCG:
             gamma_old, gamma = gamma, gamma_new
             c_old, c, s_old, s = c, c_new, s, s_new
         return _REASONS.DIVERGED_MAX_IT, iteration
+
+    def _precondition(self, ksp: PETSc.KSP, r: PETSc.Vec, z: PETSc.Vec) -> None:
+        """Apply the preconditioner, z = M⁻¹ r, but the identity on the :attr:`fixed` rows."""
+        ksp.getPC().apply(r, z)
+        if len(self.fixed):
+            z.array[self.fixed] = r.array_r[self.fixed]
 
     def _to_boundary(self, x, p, xx: float, xp: float, pp: float) -> None:
         """Move ``x`` along ``p`` (σ ≥ 0) to ‖x + σp‖_M = :attr:`radius`."""

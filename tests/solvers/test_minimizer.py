@@ -177,6 +177,30 @@ def test_neo_hookean_load_steps_converge_with_energy_decrease():
     assert tip[2] < -0.5  # hangs down by a visible fraction of its length
 
 
+@pytest.mark.mpi
+def test_every_iterate_of_petsc_cg_keeps_the_dirichlet_values_exactly():
+    """Every Newton iterate holds the clamped dofs at their values, to the last bit, on the
+    iterative path with PETSc's own CG, whose solution is exact only to its tolerance (the
+    trust region's truncated CG: tests/solvers/test_hyperelastic.py)."""
+    case = cantilever()
+    solver = EnergyMinimizer(case.problem, linear_solver="iterative")
+    assert solver.krylov_solver.getType() == "cg" and solver.directions.truncated is None
+    problem = case.problem
+    fixed = problem.constrained_dofs[problem.constrained_dofs < problem.free_owned.size]
+    drift: list[float] = []
+
+    def record(iteration: NewtonIteration) -> None:
+        values = iteration.iterate.getArray(readonly=True)[fixed]
+        drift.append(float(np.abs(values).max(initial=0.0)))
+
+    solver.add_monitor(on_iteration=record)
+    result = solve_at(case, solver, 1.0)
+    comm = problem.comm
+    assert result.newton_iterations >= 3 and result.linear_iterations > result.newton_iterations
+    assert comm.allreduce(len(fixed), op=MPI.SUM) > 0
+    assert comm.allreduce(max(drift), op=MPI.MAX) == 0.0
+
+
 def _first_newton_direction(load: float):
     """The cantilever at rest under ``load``, its minimiser, Newton direction, state, residual."""
     case = cantilever()

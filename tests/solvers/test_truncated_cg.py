@@ -38,13 +38,20 @@ def _solve(
     indefinite: bool = False,
     max_it: int = 500,
     definite_iterations: int | None = None,
+    preconditioning: np.ndarray | None = None,
+    fixed: np.ndarray | None = None,
 ):
+    """``preconditioning``: the matrix the preconditioner is built on, if not ``preconditioner``
+    (the projected tangent, which AMG only approximates); ``fixed``: the context's fixed rows."""
     A, P = _matrix(operator), _matrix(preconditioner)
+    M = P if preconditioning is None else _matrix(preconditioning)
     b = PETSc.Vec().createWithArray(rhs.copy(), comm=PETSc.COMM_SELF)
     x = b.duplicate()
     ksp = PETSc.KSP().create(comm=PETSc.COMM_SELF)
     context = truncated_cg(ksp)
-    ksp.setOperators(P, P)  # the preconditioner sees only the SPD matrix
+    if fixed is not None:
+        context.fixed = fixed.astype(np.int32)
+    ksp.setOperators(P, M)  # the preconditioner sees only an SPD matrix
     context.operator = A
     context.restart = restart
     context.radius = radius
@@ -312,3 +319,43 @@ def test_in_a_trust_region_the_exact_direction_replaces_the_boundary_where_it_de
     assert np.linalg.norm(x) == pytest.approx(radius, rel=1e-10)
     _, _, steihaug, _ = _solve(*ascending[:1], np.eye(3), ascending[1], "none", radius=radius)
     np.testing.assert_allclose(x, steihaug, rtol=1e-12)
+
+
+def _with_dirichlet_rows(matrix: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """``matrix`` with the rows and columns ``fixed`` replaced by those of the identity."""
+    matrix = matrix.copy()
+    matrix[fixed, :] = 0.0
+    matrix[:, fixed] = 0.0
+    matrix[fixed, fixed] = 1.0
+    return matrix
+
+
+@pytest.mark.parametrize("radius", [np.inf, 0.05])
+@pytest.mark.parametrize("indefinite", [False, True])
+def test_dirichlet_rows_get_their_residual_whatever_the_preconditioner_couples(radius, indefinite):
+    """Rows where both tangents are the identity and couple to nothing (Dirichlet rows) get the
+    right-hand side's entry, exactly: 0 where the iterate already holds its boundary values, also
+    where the solve stops early (on the trust region's boundary, at negative curvature, in
+    MINRES) and the preconditioner couples those rows to the others, as AMG's coarse corrections
+    do. Solved to the end, the Dirichlet rows' entries are the solution's there."""
+    rng = np.random.default_rng(21)
+    n, fixed = 24, np.array([0, 7, 8, 23])
+    operator, projected = (_with_dirichlet_rows(m, fixed) for m in _indefinite(rng, n, -0.5))
+    if not indefinite:
+        operator = projected
+    coupling = _spd(rng, n, 0.3)  # the preconditioner's matrix: every row coupled to every other
+    rhs = rng.standard_normal(n)
+    rhs[fixed] = 0.0
+    _, iterations, x, context = _solve(
+        operator, projected, rhs, "lu", radius=radius, indefinite=indefinite,
+        preconditioning=coupling, fixed=fixed,
+    )  # fmt: skip
+    assert iterations > 0 and np.abs(x).max() > 0.0
+    assert context.boundary == (radius < np.inf)
+    assert np.all(x[fixed] == 0.0)
+
+    rhs[fixed] = [0.5, -1.0, 2.0, 0.25]
+    _, _, x, context = _solve(
+        projected, projected, rhs, "lu", preconditioning=coupling, fixed=fixed
+    )
+    np.testing.assert_allclose(x, np.linalg.solve(projected, rhs), rtol=1e-9)
