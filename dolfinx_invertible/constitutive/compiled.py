@@ -34,6 +34,7 @@ from dolfinx_invertible.constitutive import numba_internals
 
 __all__ = [
     "HELPER_VARIABLE",
+    "available_cores",
     "c_callable",
     "c_callable_after_helper",
     "cached_c_callable",
@@ -119,11 +120,15 @@ def helpers_allowed() -> bool:
         return False
     if not numba_internals.ACTIVE["c_callable"]:
         return False
+    return available_cores() > 1
+
+
+def available_cores() -> int:
+    """Return the number of cores this process may run on (its affinity, else the CPU count)."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
-    return cores > 1
+        return os.cpu_count() or 1
 
 
 def start_helper(statement: str) -> subprocess.Popen | None:

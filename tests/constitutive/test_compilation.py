@@ -436,3 +436,51 @@ def test_helpers_can_be_switched_off(monkeypatch):
     assert not compiled.helpers_allowed()
     monkeypatch.setenv(compiled.HELPER_VARIABLE, "1")
     assert compiled.helpers_allowed() == (len(os.sched_getaffinity(0)) > 1)
+
+
+def _two_materials():
+    return [
+        di.Material(di.NeoHookean(mu=1.0, lam=2.0), None),
+        di.Material(di.Corotated(mu=1.0, lam=2.0), None),
+    ]
+
+
+@pytest.mark.parametrize("helper_fails", [False, True])
+def test_precompile_deals_the_chains_to_a_helper_on_each_further_core(monkeypatch, helper_fails):
+    from dolfinx_invertible.fem.kernels import KERNEL_KINDS, compilation
+
+    materials = _two_materials()
+    chains = [(m.model.model_id, m.extension_id, 2) for m in materials]
+    statements = []
+    start = compiled.start_helper
+
+    def record(statement):
+        statements.append(statement)
+        return start("raise SystemExit(3)" if helper_fails else statement)
+
+    monkeypatch.setenv(compiled.HELPER_VARIABLE, "1")
+    monkeypatch.setattr(compiled, "available_cores", lambda: 2)
+    monkeypatch.setattr(compiled, "start_helper", record)
+    for chain in chains:
+        for kind in KERNEL_KINDS:
+            monkeypatch.delitem(compilation._COMPILED, (kind, 2, *chain[:2]), raising=False)
+    seconds = compilation.precompile(dimensions=(2,), materials=materials)
+    # This process takes the first chain, the one helper the second.
+    assert len(statements) == 1 and repr([chains[1]]) in statements[0]
+    assert repr(chains[0]) not in statements[0]
+    pieces = ("svd path", *KERNEL_KINDS)
+    assert list(seconds) == [(piece, 2, repr(m)) for m in materials for piece in pieces]
+    assert all(np.isfinite(value) and value >= 0.0 for value in seconds.values())
+    # Whether the helper compiled them or failed, every kernel is in this process afterwards.
+    for chain in chains:
+        for kind in KERNEL_KINDS:
+            assert (kind, 2, *chain[:2]) in compilation._COMPILED
+
+
+def test_precompile_on_one_core_starts_no_helper(monkeypatch):
+    from dolfinx_invertible.fem.kernels import compilation
+
+    monkeypatch.setattr(compiled, "available_cores", lambda: 1)
+    monkeypatch.setattr(compiled, "start_helper", lambda statement: pytest.fail(statement))
+    seconds = compilation.precompile(dimensions=(2,), materials=_two_materials())
+    assert len(seconds) == 2 * 4

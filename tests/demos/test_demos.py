@@ -57,6 +57,7 @@ def test_constitutive_demo_runs(tmp_path):
     assert (tmp_path / "output" / "constitutive").is_dir()
 
 
+@pytest.mark.demo_job
 def test_collapse_demo_under_two_ranks_recovers_with_c2(tmp_path):
     completed = _run_demo("collapse.py", tmp_path, ranks=2)
     assert completed.returncode == 0, completed.stderr[-2000:]

@@ -81,10 +81,11 @@ run_pytest() {
       ;;
     trixie | wheel)
       local python=/usr/bin/python3 lane_env=()
-      # The report studies run scenes that the scene tests cover already, for minutes, and the
-      # full model x extension matrix is mostly compilation: leave both to the host lane, run
-      # every model and every extension at least once here (tests/conftest.py).
-      flags+=(-m "not study" --chains covering)
+      # The report studies and the main job's demo run scenes that the scene tests cover
+      # already, for minutes, and the full model x extension matrix is mostly compilation:
+      # leave them to the host lane, run every model and every extension at least once here
+      # (tests/conftest.py).
+      flags+=(-m "not study and not demo_job" --chains covering)
       if [ "$lane" = wheel ]; then
         python=$wheel_venv/bin/python
         # The venv as if activated: the wheel brings its own MPICH, so its mpiexec/mpirun (also

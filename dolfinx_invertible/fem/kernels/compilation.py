@@ -12,6 +12,9 @@ helper process ahead of that (:func:`compile_kernel_ahead`).
 
 from __future__ import annotations
 
+import json
+import os
+import tempfile
 import time
 
 from dolfinx_invertible.constitutive import compiled
@@ -21,6 +24,7 @@ from dolfinx_invertible.fem.kernels.counters import KERNEL_KINDS
 
 __all__ = [
     "DEFAULT_MATERIALS",
+    "compile_chains",
     "compile_kernel",
     "compile_kernel_ahead",
     "compiled_kernels",
@@ -30,6 +34,8 @@ __all__ = [
 ]
 
 _COMPILED: dict[tuple[str, int, int, int], object] = {}
+#: What :func:`compile_chains` compiles of a material's chain, in order.
+_PIECES = ("svd path", *KERNEL_KINDS)
 
 #: The materials ``python -m dolfinx_invertible compile`` (``make setup``) compiles kernels for,
 #: in 2D and 3D: those the demos and the documentation's scenes use, as (model class name,
@@ -173,18 +179,61 @@ def precompile(
     ``materials`` defaults to :func:`default_materials`. ``make setup`` runs this
     (``python -m dolfinx_invertible compile``) so that the first assembly in a user's script
     loads the kernels instead of compiling them; with a warm cache it takes a few seconds.
-    Keys are (kind, dimension, material description).
+    Keys are (kind, dimension, material description); each value is the time the process that
+    compiled the kernel spent on it.
+
+    numba compiles one function at a time in a process, so the (material, dimension) chains are
+    dealt round-robin, largest dimension first, to this process and a helper process on each
+    further core (:func:`~dolfinx_invertible.constitutive.compiled.helpers_allowed`), which
+    fill the same disk cache; this process then loads what the helpers compiled, or compiles it
+    if a helper failed.
     """
-    seconds = {}
-    for material in default_materials() if materials is None else materials:
-        ids = (material.model.model_id, material.extension_id)
-        for dimension in dimensions:
-            # The kernels call the material's SVD path through its address (constants header).
+    materials = default_materials() if materials is None else list(materials)
+    names = {(m.model.model_id, m.extension_id): repr(m) for m in materials}
+    chains = [(*ids, dimension) for dimension in sorted(dimensions, reverse=True) for ids in names]
+    helpers = compiled.available_cores() - 1 if compiled.helpers_allowed() else 0
+    shares = [chains[i :: helpers + 1] for i in range(min(helpers + 1, len(chains)))]
+    with tempfile.TemporaryDirectory() as folder:
+        reports = [os.path.join(folder, f"{i}.json") for i in range(1, len(shares))]
+        processes = [
+            compiled.start_helper(
+                f"import json; from {__name__} import compile_chains; "
+                f"json.dump(compile_chains({share!r}), open({report!r}, 'w'))"
+            )
+            for share, report in zip(shares[1:], reports, strict=True)
+        ]
+        timings = compile_chains(shares[0]) if shares else []
+        for process, report in zip(processes, reports, strict=True):
+            compiled.finish_helper(process)
+            if os.path.exists(report):
+                with open(report) as stream:
+                    timings += [tuple(timing) for timing in json.load(stream)]
+    # This process loads what the helpers compiled, and compiles what a failed one left out.
+    reported = {timing[:4] for timing in timings}
+    loaded = compile_chains([chain for share in shares[1:] for chain in share])
+    timings += [timing for timing in loaded if timing[:4] not in reported]
+    seconds = {timing[:4]: timing[4] for timing in timings}
+    report = {}
+    for chain in chains:
+        for piece in _PIECES:
+            report[piece, chain[2], names[chain[:2]]] = seconds[(*chain, piece)]
+    return report
+
+
+def compile_chains(chains: list[tuple[int, int, int]]) -> list[tuple[int, int, int, str, float]]:
+    """Compile or load the SVD path and the cell kernels of each (model id, extension id, d).
+
+    Returns (model id, extension id, d, piece, seconds) per piece, ``"svd path"`` or one of
+    :data:`KERNEL_KINDS` (the helpers of :func:`precompile` run this).
+    """
+    timings = []
+    for model_id, extension_id, dimension in chains:
+        # The kernels call the material's SVD path through its address (constants header).
+        for kind in _PIECES:
             start = time.perf_counter()
-            svd_path_address(*ids, dimension)
-            seconds[("svd path", dimension, repr(material))] = time.perf_counter() - start
-            for kind in KERNEL_KINDS:
-                start = time.perf_counter()
-                kernel_address(kind, dimension, *ids)
-                seconds[(kind, dimension, repr(material))] = time.perf_counter() - start
-    return seconds
+            if kind == "svd path":
+                svd_path_address(model_id, extension_id, dimension)
+            else:
+                kernel_address(kind, dimension, model_id, extension_id)
+            timings.append((model_id, extension_id, dimension, kind, time.perf_counter() - start))
+    return timings
