@@ -116,8 +116,9 @@ def _collision_set() -> ipctk.NormalCollisions:
     collisions = ipctk.NormalCollisions()
     # Area weighting makes the potential converge under refinement. ipctk's "improved max
     # approximator" is left off: in ipctk 1.6.1 its collision set, and the energy with it (by
-    # 1e-4 of itself), depends on the order of the surface vertices, which differs with the
-    # number of ranks; the plain IPC set does not.
+    # 1e-4 of itself), depends on the order of the surface vertices (GatheredSurface's, by
+    # position, the same on any number of ranks, but an arbitrary one), and in the piles it
+    # cost failed attempts where they are coarse (docs/contact.md); the plain IPC set does not.
     collisions.use_area_weighting = True
     collisions.collision_set_type = ipctk.NormalCollisions.CollisionSetType.IPC
     return collisions

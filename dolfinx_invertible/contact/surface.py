@@ -5,13 +5,17 @@ its n vertices, so :class:`GatheredSurface` gives every rank the whole surface o
 triangles, or edges in 2D, by global vertex number) and, at each evaluation, every rank's owned
 surface vertex positions (one ``Allgatherv`` of 3 numbers a surface vertex). Every rank then
 computes the same contact terms on the same surface, and adds the rows of the vertices it owns:
-no scatter back is needed, and the result does not depend on the number of ranks.
+no scatter back is needed, and the result does not depend on the number of ranks. The surface is
+numbered by position, not by the partition's dof numbers, so that ipctk sees the same vertex and
+facet order (which its collision sets and sums follow) on any number of ranks.
 
 The bodies are the connected components of the surface: several disjoint bodies in one mesh
 (several meshes merged, as in the cubes-in-bowl scene) are several components.
 """
 
 from __future__ import annotations
+
+import math
 
 from mpi4py import MPI
 
@@ -43,12 +47,15 @@ class GatheredSurface:
     dimension
         The mesh's geometric dimension, 2 or 3.
     reference
-        Reference positions of all surface vertices, (N, d), the same on every rank.
+        Reference positions of all surface vertices, (N, d), the same on every rank; the
+        surface vertices are numbered in the lexicographic order of these rows (x, then y,
+        then z, on a grid of 2⁻³⁰ of the largest coordinate), so that the surface is the same
+        on any number of ranks.
     facets
         The surface facets (triangles in 3D, segments in 2D) as rows of surface vertex
-        numbers, (M, d).
+        numbers, (M, d), each row ascending, the rows in lexicographic order.
     global_blocks
-        The global displacement block (vertex) number of each surface vertex, (N,), ascending.
+        The global displacement block (vertex) number of each surface vertex, (N,).
     owned
         Surface vertex numbers whose displacement this rank owns, (n,).
     owned_dofs
@@ -106,27 +113,28 @@ class GatheredSurface:
         ).reshape(-1, tdim)
 
         everything = np.concatenate(self.comm.allgather(global_facets)).reshape(-1, tdim)
-        # A facet on a partition boundary may be listed by two ranks: keep one copy.
-        _, first = np.unique(np.sort(everything, axis=1), axis=0, return_index=True)
-        everything = everything[np.sort(first)]
-        self.global_blocks = np.unique(everything)
-        self.facets = np.searchsorted(self.global_blocks, everything).astype(np.int32)
-
-        start = index_map.local_range[0]
-        mine = (self.global_blocks >= start) & (self.global_blocks < start + index_map.size_local)
-        self.owned = np.flatnonzero(mine).astype(np.int32)
-        owned_blocks = (self.global_blocks[mine] - start).astype(np.int64)
-        self.owned_dofs = (owned_blocks[:, None] * block_size + np.arange(dimension)).astype(
-            np.int32
-        )
-        counts = np.asarray(self.comm.allgather(len(self.owned)), dtype=np.int64)
-        self._counts = counts * dimension
-        self._displacements = np.concatenate([[0], np.cumsum(self._counts)[:-1]])
-        self._order = np.concatenate(self.comm.allgather(self.owned))
-        if len(self._order) != len(self.global_blocks):
-            raise RuntimeError("the surface vertices are not owned exactly once over the ranks")
-        coordinates = space.tabulate_dof_coordinates()[owned_blocks, :dimension]
-        self.reference = self.gather(coordinates)
+        blocks = np.unique(everything)
+        self._block_size = block_size
+        self._owned_range = (index_map.local_range[0], index_map.local_range[1])
+        self._number(blocks)
+        reference = self.gather(space.tabulate_dof_coordinates()[self._local_blocks, :dimension])
+        # The surface in an order of its own, whatever the partition: vertices by their reference
+        # coordinates, each facet's vertices ascending, the facets in ascending order (a facet on
+        # a partition boundary, listed by two ranks, once). ipctk's collision sets and sums then
+        # see the same surface on any number of ranks. The coordinates are compared on a grid of
+        # 2^-30 of the largest one: a mesh made on several ranks can differ in the last bits of
+        # a coordinate from the serial one (0 came out as 3e-17 on one partition and -1e-16 on
+        # another), and vertices that close are not distinct.
+        magnitude = float(np.abs(reference).max(initial=0.0)) or 1.0
+        quantum = 2.0 ** (math.floor(math.log2(magnitude)) - 30)
+        order = np.lexsort(np.round(reference / quantum).T[::-1])
+        renumber = np.empty_like(order)
+        renumber[order] = np.arange(len(order))
+        self.facets = np.unique(
+            np.sort(renumber[np.searchsorted(blocks, everything)], axis=1), axis=0
+        ).astype(np.int32)
+        self._number(blocks[order])
+        self.reference = reference[order]
 
         adjacency = self._adjacency()
         self.body_count, self.bodies = scipy.sparse.csgraph.connected_components(
@@ -137,6 +145,23 @@ class GatheredSurface:
 
     def __len__(self) -> int:
         return len(self.global_blocks)
+
+    def _number(self, global_blocks: np.ndarray) -> None:
+        """Take ``global_blocks`` as the surface vertices, in that order: what each rank owns."""
+        self.global_blocks = global_blocks
+        start, stop = self._owned_range
+        mine = (global_blocks >= start) & (global_blocks < stop)
+        self.owned = np.flatnonzero(mine).astype(np.int32)
+        self._local_blocks = (global_blocks[mine] - start).astype(np.int64)
+        self.owned_dofs = (
+            self._local_blocks[:, None] * self._block_size + np.arange(self.dimension)
+        ).astype(np.int32)
+        counts = np.asarray(self.comm.allgather(len(self.owned)), dtype=np.int64)
+        self._counts = counts * self.dimension
+        self._displacements = np.concatenate([[0], np.cumsum(self._counts)[:-1]])
+        self._order = np.concatenate(self.comm.allgather(self.owned))
+        if len(self._order) != len(global_blocks):
+            raise RuntimeError("the surface vertices are not owned exactly once over the ranks")
 
     def _adjacency(self) -> scipy.sparse.csr_matrix:
         rows = np.repeat(self.facets, self.facets.shape[1], axis=1).ravel()

@@ -249,6 +249,33 @@ def test_surface_is_gathered_whole_on_every_rank():
 
 
 @pytest.mark.mpi
+def test_the_gathered_surface_is_the_same_on_any_number_of_ranks():
+    """Vertices, facets and bodies in one order whatever the partition (ipctk's sets and sums
+    then see the same surface); every vertex of a facet is a surface vertex of its body."""
+    spaces = [
+        _compat.vector_function_space(two_cubes(comm), 1)
+        for comm in (MPI.COMM_SELF, MPI.COMM_WORLD)
+    ]
+    surfaces = [GatheredSurface(space) for space in spaces]
+    serial, distributed = surfaces
+    # The positions as the meshes have them: a partition may round a coordinate differently.
+    np.testing.assert_allclose(distributed.reference, serial.reference, rtol=0.0, atol=1e-14)
+    assert np.array_equal(distributed.facets, serial.facets)
+    assert np.array_equal(distributed.bodies, serial.bodies)
+    # Numbered x first, then y, then z.
+    steps = np.diff(np.round(serial.reference, 9), axis=0)
+    first = np.argmax(steps != 0.0, axis=1)
+    assert np.all(steps[np.arange(len(steps)), first] > 0.0)
+    assert np.all(np.diff(serial.facets, axis=1) > 0)
+    assert np.all(serial.bodies[serial.facets] == serial.bodies[serial.facets[:, :1]])
+    # The numbering still maps each vertex to its own displacement: X + u at u = X reads 2 X.
+    for space, surface in zip(spaces, surfaces, strict=True):
+        u = dolfinx.fem.Function(space)
+        u.interpolate(lambda x: x[:3])
+        np.testing.assert_allclose(surface.positions(u.x.array), 2.0 * surface.reference)
+
+
+@pytest.mark.mpi
 @pytest.mark.parametrize("friction", [0.0, 0.5])
 def test_distributed_equals_serial(friction):
     # Each rank adds the rows of the vertices it owns: the sums are the serial values, the
