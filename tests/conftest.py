@@ -72,16 +72,19 @@ def _in_covering_subset(items) -> list[bool]:
     With the models and the extensions numbered in the order first collected, model i goes
     with extension i mod (number of extensions), the same pairs in every test; a test without
     that extension takes its own extension i mod (its number of extensions) instead. A test
-    over the models alone runs one of them, a different one from test to test.
+    over the models alone runs one of its own models, a different one from test to test.
     """
     models: list = []
     extensions: list = []
+    own_models = collections.defaultdict(list)
     own_extensions = collections.defaultdict(list)
     for item in items:
         has_model, model = _parameter(item, _MODEL_PARAMETERS)
         has_extension, extension = _parameter(item, _EXTENSION_PARAMETERS)
         if has_model and model not in models:
             models.append(model)
+        if has_model and model not in own_models[_function(item)]:
+            own_models[_function(item)].append(model)
         if has_extension:
             if extension not in extensions:
                 extensions.append(extension)
@@ -96,7 +99,9 @@ def _in_covering_subset(items) -> list[bool]:
         if not has_model:
             keep.append(True)
         elif not has_extension:
-            keep.append(models.index(model) == functions.index(_function(item)) % len(models))
+            # One of the test's own models: a test over some of the models keeps one too.
+            own = own_models[_function(item)]
+            keep.append(model == own[functions.index(_function(item)) % len(own)])
         else:
             i = models.index(model)
             own = own_extensions[_function(item)]
