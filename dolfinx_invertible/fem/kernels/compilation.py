@@ -205,9 +205,11 @@ def precompile(
         timings = compile_chains(shares[0]) if shares else []
         for process, report in zip(processes, reports, strict=True):
             compiled.finish_helper(process)
-            if os.path.exists(report):
+            try:
                 with open(report) as stream:
                     timings += [tuple(timing) for timing in json.load(stream)]
+            except (OSError, ValueError):
+                pass  # a helper that failed or was stopped: its chains are compiled below
     # This process loads what the helpers compiled, and compiles what a failed one left out.
     reported = {timing[:4] for timing in timings}
     loaded = compile_chains([chain for share in shares[1:] for chain in share])
