@@ -72,7 +72,10 @@ def _in_covering_subset(items) -> list[bool]:
     With the models and the extensions numbered in the order first collected, model i goes
     with extension i mod (number of extensions), the same pairs in every test; a test without
     that extension takes its own extension i mod (its number of extensions) instead. A test
-    over the models alone runs one of its own models, a different one from test to test.
+    over the models alone runs one of its own models, a different one from test to test; one
+    marked ``extensions(...)`` (the extensions its body builds materials with, ``None`` for the
+    plain model) runs one whose pairs with those extensions the tests above keep anyway, so that
+    it adds no compiled chain to the lane.
     """
     models: list = []
     extensions: list = []
@@ -92,24 +95,45 @@ def _in_covering_subset(items) -> list[bool]:
             if extension not in own:
                 own.append(extension)
     functions = list(dict.fromkeys(_function(item) for item in items))
-    keep = []
-    for item in items:
+    keep = [True] * len(items)
+    kept_pairs = set()
+    for index, item in enumerate(items):
         has_model, model = _parameter(item, _MODEL_PARAMETERS)
         has_extension, extension = _parameter(item, _EXTENSION_PARAMETERS)
-        if not has_model:
-            keep.append(True)
-        elif not has_extension:
-            # One of the test's own models: a test over some of the models keeps one too.
-            own = own_models[_function(item)]
-            keep.append(model == own[functions.index(_function(item)) % len(own)])
-        else:
+        if has_model and has_extension:
             i = models.index(model)
             own = own_extensions[_function(item)]
             partner = extensions[i % len(extensions)]
             if partner not in own:
                 partner = own[i % len(own)]
-            keep.append(extension == partner)
+            keep[index] = extension == partner
+            if keep[index]:
+                kept_pairs.add((_name(model), _name(extension)))
+    for index, item in enumerate(items):
+        has_model, model = _parameter(item, _MODEL_PARAMETERS)
+        has_extension, _ = _parameter(item, _EXTENSION_PARAMETERS)
+        if has_model and not has_extension:
+            # One of the test's own models: a test over some of the models keeps one too.
+            own = own_models[_function(item)]
+            marker = item.get_closest_marker("extensions")
+            if marker is not None:
+                compiled_anyway = [
+                    candidate
+                    for candidate in own
+                    if all((_name(candidate), _name(used)) in kept_pairs for used in marker.args)
+                ]
+                own = compiled_anyway or own
+            keep[index] = model == own[functions.index(_function(item)) % len(own)]
     return keep
+
+
+def _name(value):
+    """A model's or an extension's name, however a test spells it (``None``: no extension)."""
+    if value is None or value == "none":
+        return None
+    if isinstance(value, str):
+        return value
+    return value.__name__ if isinstance(value, type) else type(value).__name__
 
 
 def _function(item) -> str:

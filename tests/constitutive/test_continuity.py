@@ -72,6 +72,7 @@ def c1_crossings():
 
 @pytest.mark.parametrize("d,case", c1_crossings())
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C1")
 def test_c1_region_boundaries(rng, model, d, case):
     template = C1_CROSSINGS[d][case]
     side = [[EPS_C1 + s * DELTA if v is None else v for v in template] for s in (1, -1)]
@@ -87,6 +88,7 @@ def c2_crossings():
 
 @pytest.mark.parametrize("d,case", c2_crossings())
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C2")
 def test_c2_threshold(rng, model, d, case):
     """Along the ray from (1,..,1) towards a point below the threshold, cross J = eps."""
     target = np.array(C2_SIGMAS[d][case])
@@ -104,6 +106,7 @@ def test_c2_threshold(rng, model, d, case):
 
 @pytest.mark.parametrize("d,case", c2_crossings())
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C2", None)
 def test_c2_equals_model_on_threshold(rng, model, d, case):
     """Value, gradient and Hessian of the extension match the model at J = eps (from above the
     two are the same function, so this checks the extension's limit from below)."""

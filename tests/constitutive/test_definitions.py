@@ -44,6 +44,7 @@ def plain_sigma(rng, model, d):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions(None)
 def test_plain_energy_formula(rng, model, d):
     m = make_material(model)
     sig = plain_sigma(rng, model, d)
@@ -102,6 +103,7 @@ def c1_reference(plain, s, eps, k):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C1", None)
 def test_c1_energy_definition(rng, model, d):
     plain = make_material(model)
     m = make_material(model, "C1", k=K_C1)
@@ -131,6 +133,7 @@ def c2_samples(rng, d):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C2", None)
 def test_c2_energy_definition(rng, model, d):
     plain = make_material(model)
     m = make_material(model, "C2")
@@ -151,6 +154,7 @@ def test_c2_energy_definition(rng, model, d):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("IFE", None)
 def test_ife_stress_definition(rng, model, d):
     plain = make_material(model)
     m = make_material(model, "IFE")

@@ -75,6 +75,7 @@ def c1_cases():
 
 @pytest.mark.parametrize("d,case", c1_cases())
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C1")
 def test_c1_every_region(rng, model, d, case):
     """0, 1, 2 (and 3) singular values below eps, with and without a negative one."""
     base = np.array(C1_REGION_SIGMAS[d][case])
@@ -95,6 +96,7 @@ def c2_cases():
 
 @pytest.mark.parametrize("d,case", c2_cases())
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C2")
 def test_c2_both_sides_of_threshold(rng, model, d, case):
     """Points with J above and below eps = 0.9, down to strongly inverted ones."""
     base = np.array(C2_SIGMAS[d][case])
@@ -113,6 +115,7 @@ def test_c2_both_sides_of_threshold(rng, model, d, case):
 # ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("IFE", None)
 def test_ife_is_model_above_threshold(rng, model, d):
     sig = random_sigma(rng, 20, d, 0.6, 1.8, keep=lambda s: np.prod(s) > EPS_C2 + 1e-3)
     F = matrices_with_sigma(rng, sig)
@@ -131,6 +134,7 @@ def test_ife_is_model_above_threshold(rng, model, d):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("IFE")
 def test_ife_projected_tangent(rng, model, d):
     F = matrices_with_sigma(rng, sigma_cases(rng, model, "IFE", d))
     T = make_material(model, "IFE").tangent(F, project=True)

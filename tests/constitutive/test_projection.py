@@ -103,6 +103,7 @@ def test_projection_is_identity_on_psd(rng, model, ext, d):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions(None)
 def test_projection_near_identity_general(rng, model, d):
     """Random small strains (rotations included): wherever the exact tangent is SPD, projection
     leaves it alone; and some samples must be SPD for the test to mean anything."""
@@ -144,6 +145,7 @@ def _fast_path_tangent(material, d):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", ["NeoHookean", "StableNeoHookean"])
+@pytest.mark.extensions("C2")
 def test_near_rest_projection_skips_the_svd(rng, model, d):
     """Near rest the exact tangent is indefinite only in its twist (rotational) modes, under
     compressive stress, or merely semidefinite at P = 0. The fast path projects that block
@@ -197,6 +199,7 @@ def _clamped(T):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", _INVARIANT_MODELS)
+@pytest.mark.extensions(None)
 def test_spectral_projection_each_twist_count(rng, model, d):
     """The SVD-free projection decides from σ (eigenvalues of FᵀF) and the invariant
     derivatives. Stretches spread around 1 give every number of negative twist stiffnesses
@@ -244,6 +247,7 @@ def test_spectral_projection_leaves_undecided_points_to_the_svd(rng, d):
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", _INVARIANT_MODELS)
 @pytest.mark.parametrize("lam", [0.1 * MU, LAM, 25.0 * MU])
+@pytest.mark.extensions(None)
 def test_spectral_projection_far_from_rest(rng, model, d, lam):
     """Singular values over e^±1.5 (inverted ones excluded: the fast path does not see them
     for these models with an extension): whatever the spectral test accepts must be the

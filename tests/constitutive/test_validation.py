@@ -146,6 +146,7 @@ def below_eps_sigma(rng, d, n=10):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", MODEL_NAMES)
+@pytest.mark.extensions("C1")
 def test_c1_default_k_is_20_E(rng, model, d):
     sig = below_eps_sigma(rng, d)
     H = make_material(model, "C1").hessian_sigma(sig)
@@ -165,6 +166,7 @@ def test_c1_explicit_k(rng, d, k):
 
 @pytest.mark.parametrize("d", DIMS)
 @pytest.mark.parametrize("model", ["Corotated", "NeoHookean"])
+@pytest.mark.extensions("C1")
 def test_c1_default_k_energy_growth(model, d):
     """Deep below eps the penalty dominates: with sigma_d = eps - t the extended energy is
     Psi(q) - t dPsi(q) + k t^2 / 2, so its second difference in t is k t^2 with k = 20 E.
