@@ -29,6 +29,20 @@ definite) the iteration's direction is computed again with AMG on the projected 
 truncated CG on K, then on K₊ or a blend), and K₊ preconditions the exact iterations until one
 of them meets no negative curvature again.
 
+In a trust region a projected preconditioner is kept from one iteration to the next: the
+iteration assembles the exact tangent, the operator of its truncated CG, but leaves K₊ of an
+earlier iterate in the preconditioning matrix, and PETSc, seeing the matrix unchanged, skips
+the AMG set-up. AMG built on any SPD matrix is an SPD preconditioner, so CG and the trust
+region's norm stay valid; what an old K₊ loses is only how well it preconditions, and the
+Krylov iterations tell: K₊ is built again at the iterate after a solve that needed more than
+:data:`KRYLOV_GROWTH` times the Krylov iterations of the first solve after the last build
+(plus :data:`KRYLOV_SLACK`), after :data:`PRECONDITIONER_LIFETIME` iterations, and at the first
+iteration of every solve. Where the exact tangent has negative curvature in every iteration (a
+tangled body crawling through its first step, each iteration a boundary step after 0–1 Krylov
+iterations) the assembly of K₊ and the AMG set-up were about half of the run's time
+(docs/performance.md). With a line search it is built at every iteration
+(:meth:`NewtonDirections._keep_preconditioner`).
+
 In Newton's local phase on the iterative path — after the first iteration of a solve, the last
 step full, not bounded by a trust region, and its decrease of the energy at least 3/4 of what
 its quadratic model predicted (ρ, the trust region's test for growing its radius) — the
@@ -70,6 +84,14 @@ __all__ = [
 ]
 
 _SAME_PATTERN = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+
+#: Newton iterations a projected preconditioner (K₊ of an earlier iterate and its AMG) is kept
+#: for at most on the iterative path, and how far the Krylov iterations may grow meanwhile:
+#: past KRYLOV_GROWTH times those of the first solve after it was built, plus KRYLOV_SLACK, it
+#: is built again at the next iterate (module description).
+PRECONDITIONER_LIFETIME = 8
+KRYLOV_GROWTH = 1.5
+KRYLOV_SLACK = 5
 
 #: Weights of the removed negative curvature tried in a blended tangent, from nearly the exact
 #: tangent down to nearly the projected one.
@@ -242,6 +264,11 @@ class NewtonDirections:
             self.preconditioner = problem.create_matrix()
             self.preconditioner.setNearNullSpace(near_nullspace)
         self.exact_preconditioner = True
+        #: Newton iterations since the projected preconditioning matrix and its AMG were built
+        #: (``None``: the preconditioner is not a projected one that can be kept).
+        self.preconditioner_age: int | None = None
+        self._krylov_after_build: int | None = None
+        self._krylov_last: int | None = None
         self.indefinite_newton = bool(indefinite_newton)
         self.preconditioned_by = "projected"
         self.direction_tangent: PETSc.Mat | None = self.matrix
@@ -283,6 +310,7 @@ class NewtonDirections:
         self.replacement_linear_iterations = 0
         self.kind = self.tangent
         self._blended.rung = 0
+        self.preconditioner_age = None
 
     # -- the tangent of an iteration --------------------------------------------------------
     def assemble(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
@@ -321,8 +349,12 @@ class NewtonDirections:
                     self._assemble_tangent_into(x, P, projected)
                 if not projected:
                     self.preconditioned_by = "exact"
+                self.preconditioner_age = None
+            elif self._keep_preconditioner():
+                # P unchanged: PETSc skips the AMG set-up too (module description).
+                self.preconditioner_age += 1
             else:
-                self._assemble_tangent_into(x, P, True)
+                self._build_projected_preconditioner(x)
         if self.truncated is not None:
             self.truncated.restart = self.preconditioned_by != "exact"
         self._assembled(A)
@@ -335,6 +367,29 @@ class NewtonDirections:
         finally:
             if projected:
                 self.tangent_switch(False)
+
+    def _build_projected_preconditioner(self, x: PETSc.Vec) -> None:
+        """Assemble K₊ at ``x`` into :attr:`preconditioner` (its AMG is set up anew)."""
+        self._assemble_tangent_into(x, self.preconditioner, True)
+        self.preconditioner_age = 0
+        self._krylov_after_build = None
+
+    def _keep_preconditioner(self) -> bool:
+        """Whether this iteration keeps the projected preconditioner of an earlier iterate.
+
+        Kept in a trust region while it is younger than :data:`PRECONDITIONER_LIFETIME`
+        iterations and the last solve needed at most :data:`KRYLOV_GROWTH` times the Krylov
+        iterations (plus :data:`KRYLOV_SLACK`) of the first solve after it was built. With a
+        line search, the truncated CG's fallback at negative curvature solves with K₊, and that
+        direction is the step itself: K₊ of an earlier iterate gave another step and, out of a
+        collapse, led to another minimiser (tests/solvers/test_hyperelastic.py). In a trust
+        region only a solve's first direction, always on a K₊ just built, is the projected one.
+        """
+        age = self.preconditioner_age
+        if self.trust_region is None or age is None or age + 1 >= PRECONDITIONER_LIFETIME:
+            return False
+        first, last = self._krylov_after_build, self._krylov_last
+        return first is None or last is None or last <= KRYLOV_GROWTH * first + KRYLOV_SLACK
 
     def assemble_projected(self, x: PETSc.Vec) -> None:
         """Assemble the projected tangent at ``x`` into :attr:`matrix`."""
@@ -380,6 +435,10 @@ class NewtonDirections:
         """
         reason = ksp.getConvergedReason()
         truncated = self.truncated
+        if self.preconditioner_age is not None:
+            self._krylov_last = int(ksp.getIterationNumber())
+            if self._krylov_after_build is None:
+                self._krylov_after_build = self._krylov_last
         if truncated is not None and not self.projected_now:
             if reason > 0 and self.preconditioned_by == "projected":
                 self.exact_preconditioner = (
@@ -430,7 +489,7 @@ class NewtonDirections:
         if self.preconditioned_by == "exact" and ksp.getConvergedReason() <= 0:
             self.preconditioned_by = "exact failed"
             self.exact_preconditioner = False
-            self._assemble_tangent_into(x, self.preconditioner, True)
+            self._build_projected_preconditioner(x)
             self.truncated.restart = True
             self.solve(ksp, y, replacement=False)
             self.replacement_linear_iterations += int(ksp.getIterationNumber())
