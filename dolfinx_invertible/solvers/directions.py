@@ -86,7 +86,7 @@ __all__ = [
 _SAME_PATTERN = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
 
 #: Newton iterations a projected preconditioner (K₊ of an earlier iterate and its AMG) is kept
-#: for at most on the iterative path, and how far the Krylov iterations may grow meanwhile:
+#: for at most in a trust region, and how far the Krylov iterations may grow meanwhile:
 #: past KRYLOV_GROWTH times those of the first solve after it was built, plus KRYLOV_SLACK, it
 #: is built again at the next iterate (module description).
 PRECONDITIONER_LIFETIME = 8
@@ -226,6 +226,10 @@ class NewtonDirections:
     direction_tangent
         The matrix holding the tangent the current direction was solved with (``None`` for a
         blend, which no matrix holds).
+    preconditioner_age
+        Iterations since the projected preconditioner (K₊ and its AMG) was built: 0 at the
+        iterate it was built at, more where it was kept (the module description); ``None``
+        where the preconditioning matrix is not a projected one that can be kept.
     """
 
     def __init__(
@@ -264,8 +268,6 @@ class NewtonDirections:
             self.preconditioner = problem.create_matrix()
             self.preconditioner.setNearNullSpace(near_nullspace)
         self.exact_preconditioner = True
-        #: Newton iterations since the projected preconditioning matrix and its AMG were built
-        #: (``None``: the preconditioner is not a projected one that can be kept).
         self.preconditioner_age: int | None = None
         self._krylov_after_build: int | None = None
         self._krylov_last: int | None = None
