@@ -152,16 +152,25 @@ def test_iterative_path_preconditions_with_the_exact_tangent_while_it_is_definit
     assert np.allclose(iterative, direct, rtol=1e-7, atol=1e-10)
 
 
+def _collapsed_cube(**options):
+    """A 3³ × 6 cube collapsed to 5 % of its size (C2), in implicit dynamics on the iterative
+    path; return the mesh, the displacement, the material and the dynamics."""
+    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
+    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
+    u.interpolate(lambda x: -0.95 * (x - 0.5))
+    material = Material(NeoHookean(mu=MU, lam=LAM), C2(0.9))
+    dynamics = ImplicitDynamics(
+        u, material, density=1.0, dt=0.02, linear_solver="iterative", **options
+    )
+    return mesh, u, material, dynamics
+
+
 @pytest.mark.mpi
 def test_iterative_path_falls_back_to_the_projected_preconditioner_and_back():
     """Collapsed, the exact tangent has negative curvature: the first exact iteration's AMG on
     K fails, the direction is solved again with AMG on K₊, and K₊ preconditions the exact
     iterations until one meets no negative curvature; then AMG is built on K again."""
-    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
-    u.interpolate(lambda x: -0.95 * (x - 0.5))
-    material = Material(NeoHookean(mu=MU, lam=LAM), C2(0.9))
-    dynamics = ImplicitDynamics(u, material, density=1.0, dt=0.02, linear_solver="iterative")
+    mesh, u, material, dynamics = _collapsed_cube()
     directions = dynamics.problem.solver.directions
     states = []
     dynamics.problem.add_monitor(
@@ -184,14 +193,7 @@ def _collapse_out_of(lifetime: int, monkeypatch):
     probe points, the preconditioner's age at every iteration, the projected tangents
     assembled and the Newton iterations."""
     monkeypatch.setattr(directions_module, "PRECONDITIONER_LIFETIME", lifetime)
-    mesh = dolfinx.mesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
-    u = dolfinx.fem.Function(_compat.vector_function_space(mesh, 1))
-    u.interpolate(lambda x: -0.95 * (x - 0.5))
-    material = Material(NeoHookean(mu=MU, lam=LAM), C2(0.9))
-    dynamics = ImplicitDynamics(
-        u, material, density=1.0, dt=0.02, linear_solver="iterative",
-        petsc_options={"snes_rtol": 1e-11},
-    )  # fmt: skip
+    _, u, _, dynamics = _collapsed_cube(petsc_options={"snes_rtol": 1e-11})
     directions = dynamics.problem.solver.directions
     switch = directions.tangent_switch
     projected = []
