@@ -47,6 +47,7 @@ _LAZY = {
     "NewtonSolverNonlinearProblem": "dolfinx_invertible.solvers.drop_in",
     "SNESNonlinearProblem": "dolfinx_invertible.solvers.drop_in",
     "UFLNeoHookeanForms": "dolfinx_invertible.fem.ufl_forms",
+    "reproducible_partitioning": "dolfinx_invertible.fem.mesh",
 }
 
 

@@ -5,7 +5,8 @@
 - :mod:`.diagnostics`: per-cell inversion, extension and energy diagnostics;
 - :mod:`.checks`: checks of a mesh and of boundary conditions before a solve;
 - :mod:`.spaces`: function spaces on every supported DOLFINx;
-- :mod:`.mesh`: a mesh from its vertices and cells on every supported DOLFINx;
+- :mod:`.mesh`: a mesh from its vertices and cells on every supported DOLFINx, and the same
+  partition of a mesh on every run;
 - :mod:`.sampling`: singular values per cell and values at points, gathered over ranks.
 """
 
@@ -15,7 +16,7 @@ from mpi4py import MPI  # noqa: F401
 from dolfinx_invertible.fem.checks import check_boundary_conditions, check_mesh
 from dolfinx_invertible.fem.diagnostics import DIAGNOSTIC_NAMES, cell_diagnostics, summary
 from dolfinx_invertible.fem.forms import HyperelasticForms, default_quadrature_degree
-from dolfinx_invertible.fem.mesh import mesh_from_cells
+from dolfinx_invertible.fem.mesh import mesh_from_cells, reproducible_partitioning
 from dolfinx_invertible.fem.sampling import CellSingularValues, PointValues
 from dolfinx_invertible.fem.spaces import scalar_function_space, vector_function_space
 
@@ -29,6 +30,7 @@ __all__ = [
     "check_mesh",
     "default_quadrature_degree",
     "mesh_from_cells",
+    "reproducible_partitioning",
     "scalar_function_space",
     "summary",
     "vector_function_space",

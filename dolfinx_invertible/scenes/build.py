@@ -20,6 +20,7 @@ from typing import Any
 import dolfinx
 
 from dolfinx_invertible.choices import TANGENTS
+from dolfinx_invertible.fem.mesh import reproducible_partitioning
 from dolfinx_invertible.fem.spaces import vector_function_space
 from dolfinx_invertible.scenes.parameters import Parameters, make_material
 from dolfinx_invertible.scenes.run import Run
@@ -45,11 +46,13 @@ def build_run(
 
     ``problem_options`` override the scene's and the parameters' options of the problem (see
     :class:`~dolfinx_invertible.HyperelasticProblem`). ``ValueError`` (e.g. surfaces that
-    cross at the start) before anything is solved.
+    cross at the start) before anything is solved. The mesh is partitioned the same way on
+    every run (:func:`~dolfinx_invertible.reproducible_partitioning`).
     """
     started = perf_counter()
     scene = scene_class(parameters, comm)
     material = make_material(parameters)
+    reproducible_partitioning()
     mesh = scene.mesh = scene.create_mesh()
     space = vector_function_space(mesh, parameters.degree)
     u = dolfinx.fem.Function(space, name="displacement")
